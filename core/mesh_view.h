@@ -1,0 +1,67 @@
+// Flat-array views of a triangle mesh: the only way algorithms see a mesh.
+// The same view points into RAM vectors or into a memory-mapped store (streaming/store.h),
+// so every algorithm runs unchanged in core and out of core.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+namespace streamcvd {
+
+/// Per-vertex flag bits stored in `MeshView::vertex_flags`.
+enum VertexFlag : uint8_t {
+  kVertexBoundary = 1u << 0,     ///< on an edge used by exactly one face
+  kVertexNonManifold = 1u << 1,  ///< on a non-manifold edge, or its face fan is not one disc/half-disc
+  kVertexIsolated = 1u << 2,     ///< referenced by no face
+};
+
+/// One contiguous slice of the store: vertices [vertex_begin, vertex_end) and the faces they own
+/// (a face is owned by its smallest-index vertex, faces sorted by owner) in [face_begin, face_end).
+struct Chunk {
+  uint32_t vertex_begin = 0;
+  uint32_t vertex_end = 0;
+  uint64_t face_begin = 0;
+  uint64_t face_end = 0;
+  float bbox_min[3] = {0, 0, 0};
+  float bbox_max[3] = {0, 0, 0};
+  /// Faces outside the chunk touching its vertices (1-ring halo) and within 3 rings, counted
+  /// at build time so a scheduler can size halo buffers before loading them.
+  uint64_t halo1_faces = 0;
+  uint64_t halo3_faces = 0;
+};
+static_assert(sizeof(Chunk) == 64, "Chunk is a 64-byte on-disk record");
+
+/// Triangle soup: what a reader produces and a writer consumes. Positions xyz float32,
+/// triangles as three uint32 vertex indices (polygons already fan-triangulated).
+struct TriangleSoupView {
+  std::span<const float> positions;     ///< 3·V floats
+  std::span<const uint32_t> triangles;  ///< 3·F indices, each < V
+  uint32_t vertex_count() const { return static_cast<uint32_t>(positions.size() / 3); }
+  uint64_t face_count() const { return triangles.size() / 3; }
+};
+
+/// Full indexed mesh with adjacency, as laid out by the compact store.
+/// CSR arrays: the neighbours of vertex v are adj[offsets[v] .. offsets[v+1]).
+struct MeshView {
+  std::span<const float> positions;                 ///< 3·V floats (Hilbert vertex order)
+  std::span<const uint32_t> triangles;              ///< 3·F indices, faces sorted by owner vertex
+  std::span<const uint64_t> vertex_vertex_offsets;  ///< V+1
+  std::span<const uint32_t> vertex_vertex;          ///< sorted neighbour ids per vertex
+  std::span<const uint64_t> vertex_face_offsets;    ///< V+1
+  std::span<const uint32_t> vertex_face;            ///< incident face ids per vertex, ascending
+  std::span<const uint8_t> vertex_flags;            ///< V, VertexFlag bits
+  std::span<const Chunk> chunks;                    ///< contiguous vertex ranges covering [0, V)
+
+  uint32_t vertex_count() const { return static_cast<uint32_t>(positions.size() / 3); }
+  uint64_t face_count() const { return triangles.size() / 3; }
+  TriangleSoupView soup() const { return {positions, triangles}; }
+  std::span<const uint32_t> neighbours(uint32_t v) const {
+    return vertex_vertex.subspan(vertex_vertex_offsets[v], vertex_vertex_offsets[v + 1] - vertex_vertex_offsets[v]);
+  }
+  std::span<const uint32_t> faces_of(uint32_t v) const {
+    return vertex_face.subspan(vertex_face_offsets[v], vertex_face_offsets[v + 1] - vertex_face_offsets[v]);
+  }
+};
+
+}  // namespace streamcvd

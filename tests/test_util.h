@@ -1,0 +1,20 @@
+// Helpers shared by the test suites: data paths, temp dirs, procedural meshes.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "core/shapes.h"
+#include "streaming/mesh_io.h"
+
+namespace streamcvd::test {
+
+/// Path of a bundled mesh under tests/data.
+std::string data_path(const std::string& name);
+/// Path of a mesh under ../shared/data, or nullopt when that folder is absent.
+std::optional<std::string> shared_data_path(const std::string& name);
+/// A fresh empty directory under the system temp dir, unique per call.
+std::filesystem::path temp_dir(const std::string& tag);
+
+}  // namespace streamcvd::test

@@ -1,0 +1,302 @@
+// Algorithm 1 of the paper (boundary-edge FIFO minimisation), the cleaning step and the
+// connectivity-constrained pass (§VI-A, §VI-B).
+#include "core/clustering.h"
+
+#include <algorithm>
+#include <cassert>
+#include <chrono>
+#include <cmath>
+
+namespace streamcvd {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+inline double dist2(const float* g, const double* c) {
+  double dx = g[0] - c[0], dy = g[1] - c[1], dz = g[2] - c[2];
+  return dx * dx + dy * dy + dz * dz;
+}
+
+// Energy change of moving item (m, g) out of cluster `from` and into cluster `to`, in the
+// numerically stable form of eq. 15 with z = centroid: removing (m, g) from a cluster of mass W
+// and centroid c lowers Σ M‖γ − c‖² by m·W/(W − m)·‖g − c‖²; adding it raises it by
+// m·W/(W + m)·‖g − c‖². Returns {increase, decrease} so the caller can apply a relative margin.
+struct MoveDelta {
+  double increase, decrease;
+};
+
+inline MoveDelta move_delta(double m, const float* g, const ClusterSums& from, const ClusterSums& to) {
+  MoveDelta d{0.0, 0.0};
+  if (from.weight > m) {
+    double inv = 1.0 / from.weight;
+    double c[3] = {from.sum[0] * inv, from.sum[1] * inv, from.sum[2] * inv};
+    d.decrease = m * from.weight / (from.weight - m) * dist2(g, c);
+  }
+  if (to.weight > 0) {
+    double inv = 1.0 / to.weight;
+    double c[3] = {to.sum[0] * inv, to.sum[1] * inv, to.sum[2] * inv};
+    d.increase = m * to.weight / (to.weight + m) * dist2(g, c);
+  }
+  return d;
+}
+
+// A move is taken only when it lowers the energy by more than a relative margin, so rounding
+// cannot make an item ping-pong between two clusters forever (DESIGN.md §3).
+constexpr double kRelativeMargin = 1e-10;
+
+inline double gain_of(const MoveDelta& d) {
+  double gain = d.decrease - d.increase;
+  return gain > kRelativeMargin * (d.decrease + d.increase) ? gain : 0.0;
+}
+
+// Removing v from cluster `a` keeps `a` connected when v's neighbours in `a` are connected
+// through the triangles around v (§VI-B: a check on the vertex 1-ring). Conservative: false
+// when the 1-ring is too large to check.
+bool removal_keeps_connected(const MeshView& mesh, std::span<const int32_t> labels, uint32_t v, int32_t a) {
+  uint32_t ids[64];
+  uint8_t parent[64];
+  int n = 0;
+  for (uint32_t u : mesh.neighbours(v))
+    if (labels[u] == a) {
+      if (n == 64) return false;
+      parent[n] = uint8_t(n);
+      ids[n++] = u;
+    }
+  if (n <= 1) return n == 1;
+  auto find = [&](uint8_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  auto index_of = [&](uint32_t u) {
+    for (int i = 0; i < n; ++i)
+      if (ids[i] == u) return i;
+    return -1;
+  };
+  int groups = n;
+  const uint32_t* T = mesh.triangles.data();
+  for (uint32_t f : mesh.faces_of(v)) {
+    uint32_t c0 = T[3 * f], c1 = T[3 * f + 1], c2 = T[3 * f + 2];
+    uint32_t p = c0 == v ? c1 : c0, q = c2 == v ? c1 : c2;
+    if (c1 == v) { p = c0; q = c2; }
+    if (labels[p] != a || labels[q] != a || p == q) continue;
+    int ip = index_of(p), iq = index_of(q);
+    if (ip < 0 || iq < 0) continue;
+    uint8_t rp = find(uint8_t(ip)), rq = find(uint8_t(iq));
+    if (rp != rq) {
+      parent[rp] = rq;
+      --groups;
+    }
+  }
+  return groups == 1;
+}
+
+inline void apply_move(uint32_t v, int32_t from, int32_t to, const ItemData& items, std::span<int32_t> labels,
+                       std::vector<ClusterSums>& sums) {
+  const double m = items.weight[v];
+  const float* g = &items.centroid[3 * size_t(v)];
+  ClusterSums& a = sums[from];
+  ClusterSums& b = sums[to];
+  a.weight -= m;
+  b.weight += m;
+  for (int c = 0; c < 3; ++c) {
+    a.sum[c] -= m * g[c];
+    b.sum[c] += m * g[c];
+  }
+  --a.count;
+  ++b.count;
+  labels[v] = to;
+}
+
+}  // namespace
+
+std::vector<ClusterSums> accumulate_clusters(const ItemData& items, std::span<const int32_t> labels,
+                                             uint32_t cluster_count) {
+  std::vector<ClusterSums> sums(cluster_count);
+  for (size_t v = 0; v < labels.size(); ++v) {
+    int32_t l = labels[v];
+    if (l < 0) continue;
+    ClusterSums& s = sums[l];
+    double m = items.weight[v];
+    s.weight += m;
+    for (int c = 0; c < 3; ++c) s.sum[c] += m * items.centroid[3 * v + c];
+    ++s.count;
+  }
+  return sums;
+}
+
+double clustering_energy(const ItemData& items, std::span<const ClusterSums> sums) {
+  // Eq. 12-15 with z_i the centroid: E − ΣA_j = Σ_j M_j‖γ_j‖² − Σ_i ‖ΣMγ‖²/ΣM.
+  double e = items.sum_weighted_norm2;
+  for (const ClusterSums& s : sums)
+    if (s.weight > 0) e -= (s.sum[0] * s.sum[0] + s.sum[1] * s.sum[1] + s.sum[2] * s.sum[2]) / s.weight;
+  return std::max(e, 0.0);
+}
+
+uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                              std::vector<ClusterSums>& sums, bool constrained, double stop_fraction,
+                              uint32_t max_loops, bool skip_unchanged, ClusteringReport& report,
+                              std::span<const uint8_t> initially_active) {
+  const uint32_t V = mesh.vertex_count();
+  const auto t0 = std::chrono::steady_clock::now();
+  // changed_in[c]: last loop in which cluster c changed. Loops are numbered from 2, so 1 marks
+  // the initially active clusters and 0 the ones known to be stable.
+  std::vector<uint32_t> changed_in(sums.size(), 1);
+  if (!initially_active.empty())
+    for (size_t c = 0; c < sums.size(); ++c) changed_in[c] = initially_active[c] ? 1 : 0;
+  // The candidate list holds every vertex on a cluster boundary (the FIFO of Algorithm 1, kept
+  // by vertex: a vertex stands for its boundary edges). Vertices of clusters that did not change
+  // in the previous loop stay parked in it: the modified-clusters skip of §VI-A, without even
+  // visiting their edges. An edge is still tested when either of its clusters changed, from the
+  // side of the changed cluster.
+  std::vector<uint32_t> candidates;
+  std::vector<uint8_t> listed(V, 0);
+  for (uint32_t v = 0; v < V; ++v) {
+    int32_t a = labels[v];
+    if (a < 0) continue;
+    for (uint32_t n : mesh.neighbours(v))
+      if (labels[n] >= 0 && labels[n] != a) {
+        candidates.push_back(v);
+        listed[v] = 1;
+        break;
+      }
+  }
+  auto list_vertex = [&](uint32_t u) {
+    if (!listed[u]) {
+      listed[u] = 1;
+      candidates.push_back(u);
+    }
+  };
+  uint32_t loops = 0;
+  for (uint32_t loop = 2; loops < max_loops; ++loop) {
+    ++loops;
+    uint64_t moves = 0;
+    size_t kept = 0;
+    for (size_t i = 0; i < candidates.size(); ++i) {
+      const uint32_t v = candidates[i];
+      if (labels[v] < 0) {
+        listed[v] = 0;
+        continue;
+      }
+      if (skip_unchanged && changed_in[labels[v]] + 1 < loop) {
+        candidates[kept++] = v;  // parked: its cluster did not change since its last test
+        continue;
+      }
+      bool boundary = false;
+      for (size_t slot = mesh.vertex_vertex_offsets[v]; slot < mesh.vertex_vertex_offsets[v + 1]; ++slot) {
+        const uint32_t k = mesh.vertex_vertex[slot];
+        const int32_t a = labels[v], b = labels[k];
+        if (b < 0 || a == b) continue;
+        boundary = true;
+        // F1: k joins a (b shrinks). F2: v joins b (a shrinks). Compare L_a + L_b only (eq. 15).
+        double gain1 = 0, gain2 = 0;
+        if (sums[b].count > 1) gain1 = gain_of(move_delta(items.weight[k], &items.centroid[3 * size_t(k)], sums[b], sums[a]));
+        if (sums[a].count > 1) gain2 = gain_of(move_delta(items.weight[v], &items.centroid[3 * size_t(v)], sums[a], sums[b]));
+        if (constrained) {
+          if (gain1 > 0 && !removal_keeps_connected(mesh, labels, k, b)) gain1 = 0;
+          if (gain2 > 0 && !removal_keeps_connected(mesh, labels, v, a)) gain2 = 0;
+        }
+        if (gain1 <= 0 && gain2 <= 0) continue;
+        const uint32_t moved = gain1 >= gain2 ? k : v;
+        if (moved == k) apply_move(k, b, a, items, labels, sums);
+        else apply_move(v, a, b, items, labels, sums);
+        changed_in[a] = changed_in[b] = loop;
+        ++moves;
+        list_vertex(moved);
+        for (uint32_t n : mesh.neighbours(moved)) list_vertex(n);
+      }
+      if (boundary) candidates[kept++] = v;
+      else listed[v] = 0;
+    }
+    candidates.resize(kept);
+    report.moves_per_loop.push_back(moves);
+    report.energy_per_loop.push_back(clustering_energy(items, sums));
+    report.seconds_per_loop.push_back(seconds_since(t0));
+    if (moves == 0 || double(moves) < stop_fraction * double(V)) break;
+  }
+  return loops;
+}
+
+uint64_t clean_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                        uint32_t cluster_count, ClusteringReport& report) {
+  const uint32_t V = mesh.vertex_count();
+  // Label each cluster's connected pieces; keep the heaviest piece of each cluster.
+  std::vector<uint32_t> piece(V, UINT32_MAX);
+  std::vector<double> piece_weight;
+  std::vector<int32_t> piece_cluster;
+  std::vector<uint32_t> queue;
+  for (uint32_t s = 0; s < V; ++s) {
+    if (labels[s] < 0 || piece[s] != UINT32_MAX) continue;
+    uint32_t id = uint32_t(piece_weight.size());
+    int32_t l = labels[s];
+    double w = 0;
+    piece[s] = id;
+    queue.assign(1, s);
+    for (size_t h = 0; h < queue.size(); ++h) {
+      uint32_t u = queue[h];
+      w += items.weight[u];
+      for (uint32_t n : mesh.neighbours(u))
+        if (labels[n] == l && piece[n] == UINT32_MAX) {
+          piece[n] = id;
+          queue.push_back(n);
+        }
+    }
+    piece_weight.push_back(w);
+    piece_cluster.push_back(l);
+  }
+  std::vector<uint32_t> best(cluster_count, UINT32_MAX), pieces(cluster_count, 0);
+  for (uint32_t p = 0; p < piece_weight.size(); ++p) {
+    int32_t l = piece_cluster[p];
+    ++pieces[l];
+    if (best[l] == UINT32_MAX || piece_weight[p] > piece_weight[best[l]]) best[l] = p;
+  }
+  for (uint32_t c = 0; c < cluster_count; ++c) report.disconnected_clusters += pieces[c] > 1;
+  uint64_t reset = 0;
+  for (uint32_t v = 0; v < V; ++v)
+    if (labels[v] >= 0 && best[labels[v]] != piece[v]) {
+      labels[v] = -1;
+      ++reset;
+    }
+  if (reset) absorb_free_vertices(mesh, labels);
+  report.cleaned_vertices += reset;
+  return reset;
+}
+
+bool clusters_connected(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count) {
+  const uint32_t V = mesh.vertex_count();
+  std::vector<uint8_t> seen(V, 0), cluster_seen(cluster_count, 0);
+  std::vector<uint32_t> queue;
+  for (uint32_t s = 0; s < V; ++s) {
+    int32_t l = labels[s];
+    if (l < 0 || seen[s]) continue;
+    if (cluster_seen[l]) return false;  // a second piece of cluster l
+    cluster_seen[l] = 1;
+    seen[s] = 1;
+    queue.assign(1, s);
+    for (size_t h = 0; h < queue.size(); ++h)
+      for (uint32_t n : mesh.neighbours(queue[h]))
+        if (labels[n] == l && !seen[n]) {
+          seen[n] = 1;
+          queue.push_back(n);
+        }
+  }
+  return true;
+}
+
+ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                                     uint32_t cluster_count, const ClusteringOptions& options) {
+  ClusteringReport report;
+  std::vector<ClusterSums> sums = accumulate_clusters(items, labels, cluster_count);
+  report.unconstrained_loops = run_clustering_loops(mesh, items, labels, sums, false, options.near_convergence,
+                                                    options.max_loops, options.skip_unchanged, report, {});
+  clean_clusters(mesh, items, labels, cluster_count, report);
+  // Incremental sums drift: rebuild them before the constrained pass (DESIGN.md §3).
+  sums = accumulate_clusters(items, labels, cluster_count);
+  report.constrained_loops = run_clustering_loops(mesh, items, labels, sums, true, 0.0, options.max_loops,
+                                                  options.skip_unchanged, report, {});
+  return report;
+}
+
+}  // namespace streamcvd

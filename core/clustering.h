@@ -1,0 +1,103 @@
+// Discrete centroidal Voronoi clustering of mesh vertices (paper §V-A, §VI-A, §VI-B, §VI-G).
+// Labels live in one flat array `cluster_of_vertex` (−1 = free); per-cluster accumulators
+// (ΣM, ΣMγ) make each boundary-edge test O(1) (eq. 15: only L_a + L_b change).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/item_data.h"
+#include "core/mesh_view.h"
+
+namespace streamcvd {
+
+enum class SmallComponents { Keep, Drop };
+
+/// How many clusters each connected component of the mesh gets.
+struct ComponentBudget {
+  std::vector<uint32_t> component_of_vertex;  ///< UINT32_MAX for isolated vertices
+  std::vector<uint32_t> clusters_per_component;
+  std::vector<uint32_t> vertices_per_component;
+  std::vector<uint8_t> component_closed;     ///< 1 when the component has no boundary vertex
+  uint32_t total_clusters = 0;               ///< Σ clusters_per_component (may differ from N)
+  uint32_t small_components_kept = 0;        ///< components given the minimum to stay a surface
+  uint32_t components_dropped = 0;           ///< components given no cluster (Drop mode)
+  std::string note;                          ///< why total_clusters ≠ N, when it is
+};
+
+/// Splits N clusters over the vertex-connected components in proportion to their weight
+/// (largest remainder). A component too small for its share gets min(4 closed / 3 open, its
+/// vertex count) clusters (Keep) or none (Drop); no component gets more clusters than vertices.
+/// O(V + E). Deterministic.
+ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& items, uint32_t clusters,
+                                      SmallComponents small_components);
+
+/// Initial sampling (§VI-G): per component, grow regions from random free vertices until each
+/// holds D = component weight / its cluster count; when free vertices run out, steal single
+/// vertices; leftover free vertices join the region that reaches them first (BFS).
+/// Returns labels in [0, budget.total_clusters) (−1 for isolated or dropped vertices).
+/// O(V + E); deterministic for a seed.
+std::vector<int32_t> initial_sampling(const MeshView& mesh, const ItemData& items, const ComponentBudget& budget,
+                                      uint64_t seed);
+
+struct ClusteringOptions {
+  double near_convergence = 1e-3;  ///< stop the unconstrained pass when < this fraction of items moved
+  uint32_t max_loops = 2000;       ///< safety bound on loops per pass
+  bool skip_unchanged = true;      ///< the modified-clusters skip of §VI-A
+};
+
+struct ClusteringReport {
+  std::vector<uint64_t> moves_per_loop;
+  std::vector<double> energy_per_loop;  ///< E_iso − Σ A_j (eq. 12) after each loop
+  std::vector<double> seconds_per_loop; ///< wall time at the end of each loop, from the pass start
+  uint32_t unconstrained_loops = 0, constrained_loops = 0;
+  uint64_t cleaned_vertices = 0;        ///< vertices reset by the cleaning step
+  uint32_t disconnected_clusters = 0;   ///< clusters found in several pieces by the cleaning step
+};
+
+/// Per-cluster accumulators: ΣM, ΣMγ (relative to ItemData::origin) and the vertex count.
+struct ClusterSums {
+  double weight = 0;
+  double sum[3] = {0, 0, 0};
+  uint32_t count = 0;
+};
+
+/// Recomputes every cluster's sums from the labels (fixed order: deterministic).
+std::vector<ClusterSums> accumulate_clusters(const ItemData& items, std::span<const int32_t> labels,
+                                             uint32_t cluster_count);
+
+/// E_iso − Σ A_j = Σ_j M_j ‖γ_j − c_i‖² with c_i the cluster centroids (eq. 12 with z_i = c_i).
+double clustering_energy(const ItemData& items, std::span<const ClusterSums> sums);
+
+/// Full minimisation (Algorithm 1 + §VI-B): unconstrained loops to near-convergence, cleaning
+/// (each cluster keeps its heaviest connected piece; the rest is freed and re-absorbed), then
+/// loops with the 1-ring connectivity check until no item moves. Never empties a cluster.
+/// Labels must be a valid initial clustering (every cluster non-empty). Single-threaded.
+ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                                     uint32_t cluster_count, const ClusteringOptions& options = {});
+
+/// Loops of Algorithm 1 until no item moves, fewer than `stop_fraction`·V items moved, or
+/// `max_loops` (constrained: every move keeps the source cluster connected, checked on the
+/// vertex's 1-ring). `initially_active` (size K, or empty = all) marks the clusters whose
+/// boundaries need testing; the others are known stable. Appends to `report`; returns loops run.
+uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                              std::vector<ClusterSums>& sums, bool constrained, double stop_fraction,
+                              uint32_t max_loops, bool skip_unchanged, ClusteringReport& report,
+                              std::span<const uint8_t> initially_active);
+
+/// Cleaning step (§VI-B, Fig. 6): frees every piece of a cluster but its heaviest connected
+/// one, then gives each freed vertex to the cluster that reaches it first by BFS.
+/// Returns the number of vertices reset; counts disconnected clusters into `report`.
+uint64_t clean_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                        uint32_t cluster_count, ClusteringReport& report);
+
+/// Gives every free (−1) non-isolated vertex reachable from a labelled one the label of the
+/// region that reaches it first (multi-source BFS in vertex order). O(V + E).
+void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels);
+
+/// True when every cluster's vertices form one connected piece of the mesh graph.
+bool clusters_connected(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count);
+
+}  // namespace streamcvd

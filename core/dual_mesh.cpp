@@ -1,0 +1,322 @@
+#include "core/dual_mesh.h"
+
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <array>
+#include <numeric>
+
+namespace streamcvd {
+
+namespace {
+
+using Triple = std::array<uint32_t, 3>;
+
+// Rotates (a, b, c) so the smallest id comes first, keeping the cyclic order (orientation).
+inline Triple canonical_rotation(uint32_t a, uint32_t b, uint32_t c) {
+  if (a < b && a < c) return {a, b, c};
+  if (b < a && b < c) return {b, c, a};
+  return {c, a, b};
+}
+
+// Number of faces holding both u and v: the intersection of two ascending face lists.
+inline uint32_t shared_faces(const MeshView& mesh, uint32_t u, uint32_t v) {
+  auto fu = mesh.faces_of(u), fv = mesh.faces_of(v);
+  uint32_t n = 0;
+  size_t i = 0, j = 0;
+  while (i < fu.size() && j < fv.size()) {
+    if (fu[i] < fv[j]) ++i;
+    else if (fv[j] < fu[i]) ++j;
+    else { ++n; ++i; ++j; }
+  }
+  return n;
+}
+
+struct BoundaryEdge {
+  uint32_t from, to;
+};
+
+// Directed boundary edges (u → v as in their only face), sorted by `from`.
+std::vector<BoundaryEdge> directed_boundary_edges(const MeshView& mesh) {
+  std::vector<BoundaryEdge> edges;
+  const uint32_t* T = mesh.triangles.data();
+  for (uint64_t f = 0; f < mesh.face_count(); ++f)
+    for (int i = 0; i < 3; ++i) {
+      uint32_t u = T[3 * f + i], v = T[3 * f + (i + 1) % 3];
+      if (u == v || !(mesh.vertex_flags[u] & kVertexBoundary) || !(mesh.vertex_flags[v] & kVertexBoundary)) continue;
+      if (shared_faces(mesh, u, v) == 1) edges.push_back({u, v});
+    }
+  std::sort(edges.begin(), edges.end(), [](const BoundaryEdge& x, const BoundaryEdge& y) {
+    return x.from != y.from ? x.from < y.from : x.to < y.to;
+  });
+  return edges;
+}
+
+// Appends the §VI-D strip of every boundary loop: for each change of cluster a → b along the
+// loop, a vertex p at the middle of that boundary edge and the triangles (p, b, a) and
+// (p, p_next, b). Loops meeting fewer than three clusters close instead. Loops meeting exactly two clusters are reported instead (the strip would fold).
+void add_boundary_strips(const MeshView& mesh, std::span<const int32_t> labels,
+                         std::span<const uint32_t> output_of_cluster, std::span<const uint32_t> cluster_size,
+                         DualMesh& dual, std::vector<Triple>& faces) {
+  std::vector<BoundaryEdge> edges = directed_boundary_edges(mesh);
+  if (edges.empty()) return;
+  const uint32_t V = mesh.vertex_count();
+  // Successor of each boundary edge: the unique boundary edge leaving its `to` vertex.
+  std::vector<uint32_t> out_begin(V + 1, 0);
+  for (const BoundaryEdge& e : edges) ++out_begin[e.from + 1];
+  std::vector<uint32_t> in_count(V, 0);
+  for (const BoundaryEdge& e : edges) ++in_count[e.to];
+  std::partial_sum(out_begin.begin(), out_begin.end(), out_begin.begin());
+  auto simple = [&](uint32_t v) { return out_begin[v + 1] - out_begin[v] == 1 && in_count[v] == 1; };
+  std::vector<uint8_t> visited(edges.size(), 0);
+  std::vector<uint32_t> loop;
+  const float* P = mesh.positions.data();
+  for (uint32_t start = 0; start < edges.size(); ++start) {
+    if (visited[start]) continue;
+    loop.clear();
+    bool closed = false, usable = true;
+    for (uint32_t e = start;;) {
+      visited[e] = 1;
+      loop.push_back(e);
+      uint32_t v = edges[e].to;
+      if (!simple(v)) { usable = false; break; }
+      uint32_t next = out_begin[v];
+      if (next == start) { closed = true; break; }
+      if (visited[next]) { usable = false; break; }
+      e = next;
+    }
+    if (!closed || !usable) {  // non-manifold boundary vertex: no strip through it
+      ++dual.loops_skipped;
+      continue;
+    }
+    // Cluster changes along the loop.
+    std::vector<uint32_t> changes;
+    bool labelled = true;
+    for (uint32_t k = 0; k < loop.size(); ++k) {
+      int32_t a = labels[edges[loop[k]].from], b = labels[edges[loop[k]].to];
+      if (a < 0 || b < 0) { labelled = false; break; }
+      if (a != b) changes.push_back(k);
+    }
+    if (!labelled) continue;
+    if (changes.empty()) {  // the hole lies inside one cluster: its dual vertex covers it
+      ++dual.holes_closed;
+      continue;
+    }
+    if (changes.size() == 2) {
+      // Two clusters around a hole: the dual edge between them crosses the hole, and the
+      // interior triangles on either side of it already close the surface there. A strip
+      // would fold onto that edge, so the hole is left closed (counted, not a defect).
+      ++dual.holes_closed;
+      continue;
+    }
+    // Clusters of one vertex all along the loop: the dual boundary is the input boundary
+    // already (a component copied as it is); a strip would only add flat triangles.
+    bool all_single = changes.size() == loop.size();
+    for (uint32_t k = 0; all_single && k < loop.size(); ++k) all_single = cluster_size[labels[edges[loop[k]].from]] == 1;
+    if (all_single) continue;
+    // One strip point per change, except that consecutive changes whose midpoints coincide
+    // (coincident input vertices) share one point, so no strip triangle is flat.
+    std::vector<std::array<float, 3>> points;
+    std::vector<uint32_t> point_of_change(changes.size());
+    for (uint32_t t = 0; t < changes.size(); ++t) {
+      const BoundaryEdge& e = edges[loop[changes[t]]];
+      std::array<float, 3> p;
+      for (int c = 0; c < 3; ++c) p[c] = 0.5f * (P[3 * e.from + c] + P[3 * e.to + c]);
+      if (!points.empty() && points.back() == p) {
+        point_of_change[t] = uint32_t(points.size() - 1);
+        continue;
+      }
+      point_of_change[t] = uint32_t(points.size());
+      points.push_back(p);
+    }
+    if (points.size() > 1 && points.back() == points.front()) {
+      for (uint32_t t = 0; t < changes.size(); ++t)
+        if (point_of_change[t] == points.size() - 1) point_of_change[t] = 0;
+      points.pop_back();
+    }
+    if (points.size() < 3) {
+      ++dual.holes_closed;
+      continue;
+    }
+    const uint32_t first_new = dual.mesh.vertex_count();
+    for (const auto& p : points) {
+      dual.mesh.positions.insert(dual.mesh.positions.end(), p.begin(), p.end());
+      dual.cluster_of_output_vertex.push_back(-1);
+    }
+    dual.boundary_vertices_added += points.size();
+    for (uint32_t t = 0; t < changes.size(); ++t) {
+      const BoundaryEdge& e = edges[loop[changes[t]]];
+      uint32_t a = output_of_cluster[labels[e.from]], b = output_of_cluster[labels[e.to]];
+      uint32_t p = first_new + point_of_change[t];
+      uint32_t p_next = first_new + point_of_change[(t + 1) % changes.size()];
+      faces.push_back(canonical_rotation(p, b, a));
+      if (p_next != p) faces.push_back(canonical_rotation(p, p_next, b));
+    }
+  }
+}
+
+}  // namespace
+
+DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count,
+                         std::span<const double> cluster_positions, const DualMeshOptions& options) {
+  DualMesh dual;
+  // Non-empty clusters, in id order, become the output vertices.
+  std::vector<uint32_t> cluster_size(cluster_count, 0);
+  for (int32_t l : labels)
+    if (l >= 0) ++cluster_size[l];
+  std::vector<uint32_t> output_of_cluster(cluster_count, UINT32_MAX);
+  for (uint32_t c = 0; c < cluster_count; ++c) {
+    if (cluster_size[c] == 0) continue;
+    output_of_cluster[c] = dual.mesh.vertex_count();
+    for (int k = 0; k < 3; ++k) dual.mesh.positions.push_back(float(cluster_positions[3 * size_t(c) + k]));
+    dual.cluster_of_output_vertex.push_back(int32_t(c));
+  }
+  std::vector<Triple> faces;
+  const uint32_t* T = mesh.triangles.data();
+  for (uint64_t f = 0; f < mesh.face_count(); ++f) {
+    int32_t a = labels[T[3 * f]], b = labels[T[3 * f + 1]], c = labels[T[3 * f + 2]];
+    if (a < 0 || b < 0 || c < 0 || a == b || b == c || a == c) continue;
+    faces.push_back(canonical_rotation(output_of_cluster[a], output_of_cluster[b], output_of_cluster[c]));
+  }
+  if (options.boundary_strips) add_boundary_strips(mesh, labels, output_of_cluster, cluster_size, dual, faces);
+  tbb::parallel_sort(faces.begin(), faces.end());
+  size_t before = faces.size();
+  faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
+  dual.duplicate_faces_removed = before - faces.size();
+  dual.mesh.triangles.reserve(faces.size() * 3);
+  for (const Triple& t : faces) dual.mesh.triangles.insert(dual.mesh.triangles.end(), t.begin(), t.end());
+  return dual;
+}
+
+std::vector<uint32_t> find_manifold_defects(const TriangleSoupView& mesh) {
+  const uint64_t F = mesh.face_count();
+  const uint32_t V = mesh.vertex_count();
+  const uint32_t* T = mesh.triangles.data();
+  std::vector<uint32_t> bad;
+  // Half-edges keyed by their undirected edge.
+  struct HalfEdge {
+    uint32_t lo, hi, face;
+    uint8_t forward;  // from == lo
+    uint8_t corner;   // index of `from` in its face
+  };
+  std::vector<HalfEdge> half(3 * F);
+  std::vector<uint8_t> degenerate(F, 0);
+  for (uint64_t f = 0; f < F; ++f) {
+    uint32_t c[3] = {T[3 * f], T[3 * f + 1], T[3 * f + 2]};
+    if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2]) {
+      degenerate[f] = 1;
+      bad.insert(bad.end(), c, c + 3);
+    }
+    for (int i = 0; i < 3; ++i) {
+      uint32_t u = c[i], v = c[(i + 1) % 3];
+      half[3 * f + i] = {std::min(u, v), std::max(u, v), uint32_t(f), uint8_t(u < v), uint8_t(i)};
+    }
+  }
+  tbb::parallel_sort(half.begin(), half.end(), [](const HalfEdge& x, const HalfEdge& y) {
+    return x.lo != y.lo ? x.lo < y.lo : (x.hi != y.hi ? x.hi < y.hi : x.face < y.face);
+  });
+  // Corners (f, i) of one vertex are joined through each manifold edge around it; a manifold
+  // vertex ends with all its corners in one set (one fan).
+  std::vector<uint32_t> parent(3 * F);
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto find = [&](uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  auto unite = [&](uint32_t x, uint32_t y) {
+    x = find(x);
+    y = find(y);
+    if (x != y) parent[std::max(x, y)] = std::min(x, y);
+  };
+  auto corner_of = [&](uint32_t f, uint32_t v) {
+    for (uint32_t i = 0; i < 3; ++i)
+      if (T[3 * size_t(f) + i] == v) return 3 * f + i;
+    return 3 * f;
+  };
+  for (size_t i = 0; i < half.size();) {
+    size_t j = i;
+    while (j < half.size() && half[j].lo == half[i].lo && half[j].hi == half[i].hi) ++j;
+    const HalfEdge& h = half[i];
+    if (h.lo != h.hi && !degenerate[h.face]) {
+      size_t n = j - i;
+      if (n > 2 || (n == 2 && half[i].forward == half[i + 1].forward)) {
+        bad.push_back(h.lo);
+        bad.push_back(h.hi);
+      } else if (n == 2) {
+        uint32_t f1 = half[i].face, f2 = half[i + 1].face;
+        unite(corner_of(f1, h.lo), corner_of(f2, h.lo));
+        unite(corner_of(f1, h.hi), corner_of(f2, h.hi));
+      }
+    }
+    i = j;
+  }
+  std::vector<uint32_t> root_of_vertex(V, UINT32_MAX);
+  std::vector<uint8_t> referenced(V, 0);
+  for (uint64_t f = 0; f < 3 * F; ++f) referenced[T[f]] = 1;
+  for (uint32_t v = 0; v < V; ++v)
+    if (!referenced[v]) bad.push_back(v);
+  for (uint64_t f = 0; f < F; ++f) {
+    if (degenerate[f]) continue;
+    for (int i = 0; i < 3; ++i) {
+      uint32_t v = T[3 * f + i], r = find(uint32_t(3 * f + i));
+      if (root_of_vertex[v] == UINT32_MAX) root_of_vertex[v] = r;
+      else if (root_of_vertex[v] != r) bad.push_back(v);
+    }
+  }
+  // Duplicate faces: the same vertex set twice, in either orientation.
+  std::vector<Triple> sets(F);
+  for (uint64_t f = 0; f < F; ++f) {
+    Triple t = {T[3 * f], T[3 * f + 1], T[3 * f + 2]};
+    std::sort(t.begin(), t.end());
+    sets[f] = t;
+  }
+  tbb::parallel_sort(sets.begin(), sets.end());
+  for (size_t i = 1; i < sets.size(); ++i)
+    if (sets[i] == sets[i - 1]) bad.insert(bad.end(), sets[i].begin(), sets[i].end());
+  std::sort(bad.begin(), bad.end());
+  bad.erase(std::unique(bad.begin(), bad.end()), bad.end());
+  return bad;
+}
+
+DefectRemoval remove_manifold_defects(MeshBuffers& mesh, std::vector<int32_t>& cluster_of_output_vertex) {
+  DefectRemoval removal;
+  for (int iteration = 0; iteration < 64; ++iteration) {
+    std::vector<uint32_t> defects = find_manifold_defects(mesh.view());
+    if (defects.empty()) break;
+    std::vector<uint8_t> bad(mesh.vertex_count(), 0);
+    for (uint32_t v : defects) bad[v] = 1;
+    size_t kept = 0;
+    auto& T = mesh.triangles;
+    for (size_t f = 0; f < T.size(); f += 3) {
+      if (bad[T[f]] || bad[T[f + 1]] || bad[T[f + 2]]) {
+        ++removal.faces_removed;
+        continue;
+      }
+      T[kept] = T[f];
+      T[kept + 1] = T[f + 1];
+      T[kept + 2] = T[f + 2];
+      kept += 3;
+    }
+    T.resize(kept);
+    // Drop vertices left without faces, renumbering the rest in order.
+    std::vector<uint32_t> new_id(mesh.vertex_count(), UINT32_MAX);
+    for (uint32_t i : T) new_id[i] = 0;
+    uint32_t next = 0;
+    for (uint32_t v = 0; v < mesh.vertex_count(); ++v) {
+      if (new_id[v] == UINT32_MAX) {
+        ++removal.vertices_removed;
+        continue;
+      }
+      new_id[v] = next;
+      for (int c = 0; c < 3; ++c) mesh.positions[3 * size_t(next) + c] = mesh.positions[3 * size_t(v) + c];
+      cluster_of_output_vertex[next] = cluster_of_output_vertex[v];
+      ++next;
+    }
+    mesh.positions.resize(3 * size_t(next));
+    cluster_of_output_vertex.resize(next);
+    for (uint32_t& i : T) i = new_id[i];
+  }
+  return removal;
+}
+
+}  // namespace streamcvd

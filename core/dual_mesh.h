@@ -1,0 +1,54 @@
+// Dual meshing of a vertex clustering (paper §VI-C, §VI-D): one output vertex per non-empty
+// cluster, one output triangle per input triangle whose three vertices lie in three different
+// clusters (duplicates removed, orientation from the input), and triangle strips along the
+// input boundaries so the output boundary follows the input one.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/mesh_buffers.h"
+#include "core/mesh_view.h"
+
+namespace streamcvd {
+
+struct DualMeshOptions {
+  bool boundary_strips = true;  ///< §VI-D: one vertex + two triangles per cluster change along a boundary
+};
+
+struct DualMesh {
+  MeshBuffers mesh;
+  std::vector<int32_t> cluster_of_output_vertex;  ///< cluster id, or −1 for boundary-strip vertices
+  uint64_t duplicate_faces_removed = 0;
+  uint64_t boundary_vertices_added = 0;
+  /// Boundary loops that meet fewer than three clusters: the hole is smaller than the output
+  /// resolution and closes in the dual (no strip is added for it).
+  uint64_t holes_closed = 0;
+  /// Boundary loops skipped because they pass through a non-manifold boundary vertex.
+  uint64_t loops_skipped = 0;
+};
+
+/// Builds the dual mesh. `cluster_positions` holds 3 doubles per cluster (the output vertex of
+/// each cluster, z_i). Empty clusters produce no vertex. O(F log F) (sort of face triples).
+/// Deterministic. Thread-safe (pure).
+DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count,
+                         std::span<const double> cluster_positions, const DualMeshOptions& options = {});
+
+/// Output vertices involved in a defect of a triangle mesh: non-manifold edges (> 2 faces),
+/// edges used twice in the same direction, vertices whose faces do not form one fan,
+/// duplicate faces (same vertex set), degenerate faces (repeated index), vertices on no face.
+/// Sorted, unique.
+/// O(F log F).
+std::vector<uint32_t> find_manifold_defects(const TriangleSoupView& mesh);
+
+struct DefectRemoval {
+  uint64_t faces_removed = 0, vertices_removed = 0;
+};
+
+/// Last resort after the clustering repair: deletes the faces around every defect vertex of
+/// find_manifold_defects (and then vertices left without faces), until none is left. Leaves
+/// small holes instead of non-manifold output. `cluster_of_output_vertex` is compacted along.
+DefectRemoval remove_manifold_defects(MeshBuffers& mesh, std::vector<int32_t>& cluster_of_output_vertex);
+
+}  // namespace streamcvd

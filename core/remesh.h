@@ -1,0 +1,56 @@
+// The remeshing pipeline on a mesh view: items → component budget → initial sampling →
+// clustering (unconstrained, clean, constrained) → dual mesh → manifold check and local repair.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/clustering.h"
+#include "core/dual_mesh.h"
+#include "core/mesh_buffers.h"
+#include "core/mesh_view.h"
+
+namespace streamcvd {
+
+struct RemeshOptions {
+  uint32_t vertices = 10000;   ///< N: output vertex budget (clusters)
+  uint64_t seed = 20080401;    ///< RNG seed of the initial sampling; same seed, same output
+  SmallComponents small_components = SmallComponents::Keep;  ///< components too small for one cluster
+  bool boundary_strips = true; ///< §VI-D triangle strips along input boundaries
+  uint32_t repair_rounds = 12; ///< split/merge rounds around dual-mesh defects before the cleanup
+  ClusteringOptions clustering;
+  std::vector<float> density;  ///< optional ρ per vertex (size V), empty = uniform
+};
+
+struct StageTimes {
+  double items = 0, sampling = 0, clustering = 0, repair = 0, dual = 0;
+};
+
+struct RemeshResult {
+  MeshBuffers mesh;                  ///< output vertices (cluster representatives) and triangles
+  std::vector<int32_t> cluster_of_vertex;  ///< final label of each input vertex
+  uint32_t clusters = 0;             ///< clusters used (budget after components)
+  ComponentBudget budget;
+  ClusteringReport clustering;
+  StageTimes seconds;
+  double final_energy = 0;           ///< E_iso − ΣA_j of the final clustering
+  uint32_t repair_rounds_used = 0;
+  uint64_t repaired_clusters = 0;    ///< clusters touched by the repair
+  uint64_t repair_splits = 0, repair_merges = 0, repair_islands = 0;
+  uint64_t defect_vertices = 0;      ///< output vertices still on a defect at the end (0 = valid)
+  uint64_t defect_faces_removed = 0;   ///< faces deleted by the last-resort cleanup (holes opened)
+  uint64_t defect_vertices_removed = 0;  ///< vertices deleted with them (output has fewer than N)
+  uint64_t duplicate_faces_removed = 0;
+  uint64_t boundary_vertices_added = 0;
+  uint64_t holes_closed = 0;
+  bool clusters_connected = false;
+};
+
+/// Remeshes `mesh` to `options.vertices` clusters (metric I, §V-A). The output vertex of each
+/// cluster is its centroid; strips add vertices along boundaries. Checks the dual for
+/// non-manifold edges/vertices, isolated vertices and duplicate faces, and repairs the
+/// clustering around each defect (core/repair.h, up to repair_rounds). Single-threaded clustering; deterministic for a seed.
+RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options);
+
+}  // namespace streamcvd

@@ -1,0 +1,36 @@
+// Topological repair of a clustering whose dual mesh has defects (non-manifold edges or
+// vertices, isolated vertices, duplicate faces). Defects come from features thinner than a
+// cluster: a cluster enclosed by one other (an island), wrapping a tube or a hole (fewer than
+// three neighbours), or meeting a neighbour along two separate frontiers. The repair splits
+// such clusters in two and dissolves islands into their surrounding cluster, and keeps the
+// cluster count N exact by merging the lightest adjacent pairs far from any defect (or
+// splitting the heaviest clusters). Constrained clustering then relaxes the touched region.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/item_data.h"
+#include "core/mesh_view.h"
+
+namespace streamcvd {
+
+struct RepairRoundStats {
+  uint32_t splits = 0, dissolved_islands = 0, merges = 0;
+};
+
+/// One repair round on `labels` (K clusters, all non-empty before and after). Every cluster
+/// stays connected. Returns the clusters whose vertices changed (for the relaxation to start
+/// from). `adjustable` (size K) marks the clusters that compensating merges and splits may
+/// use (not those of small components copied as they are). O(V + E) per round. Deterministic.
+std::vector<int32_t> repair_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                                     uint32_t cluster_count, std::span<const int32_t> defect_clusters,
+                                     std::span<const uint8_t> adjustable, RepairRoundStats& stats);
+
+/// Splits cluster `c` in two connected halves grown by BFS from two far-apart vertices of it;
+/// the second half takes label `new_label`. No-op for a cluster of one vertex (returns false).
+bool split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
+                   int32_t new_label);
+
+}  // namespace streamcvd

@@ -1,0 +1,238 @@
+// Component budget and initial sampling (paper §VI-G).
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+#include "core/clustering.h"
+
+namespace streamcvd {
+
+namespace {
+
+constexpr uint32_t kNoComponent = UINT32_MAX;
+constexpr uint32_t kVerbatimVertices = 16;
+
+// Vertex-connected components by BFS over the CSR graph; isolated vertices get kNoComponent.
+uint32_t label_components(const MeshView& mesh, std::vector<uint32_t>& component) {
+  const uint32_t V = mesh.vertex_count();
+  component.assign(V, kNoComponent);
+  std::vector<uint32_t> queue;
+  queue.reserve(1024);
+  uint32_t count = 0;
+  for (uint32_t seed = 0; seed < V; ++seed) {
+    if (component[seed] != kNoComponent || mesh.faces_of(seed).empty()) continue;
+    component[seed] = count;
+    queue.assign(1, seed);
+    for (size_t head = 0; head < queue.size(); ++head)
+      for (uint32_t n : mesh.neighbours(queue[head]))
+        if (component[n] == kNoComponent) {
+          component[n] = count;
+          queue.push_back(n);
+        }
+    ++count;
+  }
+  return count;
+}
+
+// Largest-remainder split of `budget` over `weights`, each share clamped to [lo_i, hi_i].
+std::vector<uint32_t> proportional_split(const std::vector<double>& weights, uint64_t budget,
+                                         const std::vector<uint32_t>& lo, const std::vector<uint32_t>& hi) {
+  const size_t n = weights.size();
+  std::vector<uint32_t> share(n, 0);
+  std::vector<uint8_t> fixed(n, 0);
+  // Iterate: components whose proportional share falls outside [lo, hi] are fixed at the bound,
+  // the rest re-share what remains. Terminates in at most n rounds.
+  for (size_t round = 0; round <= n; ++round) {
+    double free_weight = 0;
+    uint64_t free_budget = budget;
+    for (size_t i = 0; i < n; ++i) {
+      if (fixed[i]) free_budget -= std::min<uint64_t>(free_budget, share[i]);
+      else free_weight += weights[i];
+    }
+    bool changed = false;
+    for (size_t i = 0; i < n; ++i) {
+      if (fixed[i]) continue;
+      double ideal = free_weight > 0 ? double(free_budget) * weights[i] / free_weight : 0.0;
+      if (ideal < lo[i]) { share[i] = lo[i]; fixed[i] = 1; changed = true; }
+      else if (ideal > hi[i]) { share[i] = hi[i]; fixed[i] = 1; changed = true; }
+    }
+    if (changed) continue;
+    std::vector<std::pair<double, size_t>> remainders;
+    uint64_t given = 0;
+    for (size_t i = 0; i < n; ++i) {
+      if (fixed[i]) continue;
+      double ideal = free_weight > 0 ? double(free_budget) * weights[i] / free_weight : 0.0;
+      share[i] = uint32_t(std::floor(ideal));
+      given += share[i];
+      remainders.push_back({ideal - std::floor(ideal), i});
+    }
+    std::stable_sort(remainders.begin(), remainders.end(),
+                     [](const auto& x, const auto& y) { return x.first > y.first; });
+    for (size_t k = 0; given < free_budget && k < remainders.size(); ++k) {
+      size_t i = remainders[k].second;
+      if (share[i] < hi[i]) { ++share[i]; ++given; }
+    }
+    break;
+  }
+  return share;
+}
+
+}  // namespace
+
+ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& items, uint32_t clusters,
+                                      SmallComponents small_components) {
+  ComponentBudget b;
+  const uint32_t C = label_components(mesh, b.component_of_vertex);
+  const uint32_t V = mesh.vertex_count();
+  std::vector<double> weight(C, 0.0);
+  b.vertices_per_component.assign(C, 0);
+  b.component_closed.assign(C, 1);
+  for (uint32_t v = 0; v < V; ++v) {
+    uint32_t c = b.component_of_vertex[v];
+    if (c == kNoComponent) continue;
+    weight[c] += items.weight[v];
+    ++b.vertices_per_component[c];
+    if (mesh.vertex_flags[v] & kVertexBoundary) b.component_closed[c] = 0;
+  }
+  double total = std::accumulate(weight.begin(), weight.end(), 0.0);
+  std::vector<uint32_t> lo(C), hi(C);
+  std::vector<uint8_t> small(C, 0);
+  for (uint32_t c = 0; c < C; ++c) {
+    uint32_t minimum = std::min<uint32_t>(b.component_closed[c] ? 4 : 3, b.vertices_per_component[c]);
+    double ideal = total > 0 ? double(clusters) * weight[c] / total : 0.0;
+    small[c] = ideal < minimum;
+    hi[c] = b.vertices_per_component[c];
+    lo[c] = small[c] ? (small_components == SmallComponents::Keep ? minimum : 0) : minimum;
+    if (small[c] && small_components == SmallComponents::Drop) hi[c] = 0;
+    // A kept component of a few vertices is copied as it is (one cluster per vertex): the dual
+    // of 3-4 clusters on a handful of triangles is too often empty or degenerate.
+    if (small[c] && small_components == SmallComponents::Keep && b.vertices_per_component[c] <= kVerbatimVertices)
+      lo[c] = hi[c] = b.vertices_per_component[c];
+  }
+  // Small components take their minimum first; the large ones share what is left.
+  b.clusters_per_component = proportional_split(weight, clusters, lo, hi);
+  for (uint32_t c = 0; c < C; ++c) {
+    b.total_clusters += b.clusters_per_component[c];
+    if (small[c]) {
+      if (b.clusters_per_component[c] == 0) ++b.components_dropped;
+      else ++b.small_components_kept;
+    }
+  }
+  if (b.total_clusters != clusters) {
+    uint64_t clusterable = 0;
+    for (uint32_t c = 0; c < C; ++c) clusterable += b.vertices_per_component[c];
+    if (b.total_clusters > clusters)
+      b.note = "the " + std::to_string(b.small_components_kept) + " small components kept need " +
+               std::to_string(b.total_clusters) + " clusters, more than the " + std::to_string(clusters) + " asked";
+    else if (clusterable < clusters)
+      b.note = "the input has only " + std::to_string(clusterable) + " vertices on faces";
+    else
+      b.note = "components could not take the whole budget";
+  }
+  return b;
+}
+
+std::vector<int32_t> initial_sampling(const MeshView& mesh, const ItemData& items, const ComponentBudget& budget,
+                                      uint64_t seed) {
+  const uint32_t V = mesh.vertex_count();
+  const uint32_t C = uint32_t(budget.clusters_per_component.size());
+  std::vector<int32_t> label(V, -1);
+  std::vector<double> component_weight(C, 0.0);
+  for (uint32_t v = 0; v < V; ++v)
+    if (budget.component_of_vertex[v] != kNoComponent) component_weight[budget.component_of_vertex[v]] += items.weight[v];
+  std::vector<double> target(C, 0.0);  // D of eq. 19, per component
+  for (uint32_t c = 0; c < C; ++c)
+    if (budget.clusters_per_component[c] > 0) target[c] = component_weight[c] / budget.clusters_per_component[c];
+  std::vector<uint32_t> remaining = budget.clusters_per_component;
+
+  // One seeded random permutation of all vertices gives every component its random free seeds.
+  std::vector<uint32_t> order(V);
+  std::iota(order.begin(), order.end(), 0u);
+  std::mt19937_64 rng(seed);
+  for (uint32_t i = V; i > 1; --i) std::swap(order[i - 1], order[rng() % i]);
+
+  int32_t next_label = 0;
+  std::vector<uint32_t> queue;
+  queue.reserve(4096);
+  std::vector<int32_t> queued_by(V, -1);
+  for (uint32_t v : order) {
+    uint32_t c = budget.component_of_vertex[v];
+    if (c == kNoComponent || label[v] >= 0 || remaining[c] == 0) continue;
+    // Grow a region from v over free vertices of its component until it weighs D (eq. 19).
+    int32_t id = next_label++;
+    --remaining[c];
+    double acc = 0;
+    queued_by[v] = id;
+    queue.assign(1, v);
+    for (size_t head = 0; head < queue.size(); ++head) {
+      uint32_t u = queue[head];
+      label[u] = id;
+      acc += items.weight[u];
+      if (acc >= target[c]) break;
+      for (uint32_t n : mesh.neighbours(u))
+        if (label[n] < 0 && queued_by[n] != id) {
+          queued_by[n] = id;
+          queue.push_back(n);
+        }
+    }
+  }
+  // Components that ran out of free vertices: the paper's fallback picks non-free vertices;
+  // we take them from the largest clusters of that component so no cluster empties.
+  bool any_left = false;
+  for (uint32_t c = 0; c < C; ++c) any_left |= remaining[c] > 0;
+  if (any_left) {
+    std::vector<uint32_t> size(size_t(next_label), 0);
+    for (uint32_t v = 0; v < V; ++v)
+      if (label[v] >= 0) ++size[label[v]];
+    for (uint32_t v : order) {
+      uint32_t c = budget.component_of_vertex[v];
+      if (c == kNoComponent || remaining[c] == 0) continue;
+      if (label[v] >= 0 && size[label[v]] < 2) continue;
+      if (label[v] >= 0) --size[label[v]];
+      label[v] = next_label++;
+      size.push_back(1);
+      --remaining[c];
+    }
+  }
+  absorb_free_vertices(mesh, label);
+  return label;
+}
+
+void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels) {
+  const uint32_t V = mesh.vertex_count();
+  std::vector<uint32_t> frontier;
+  for (uint32_t v = 0; v < V; ++v) {
+    if (labels[v] >= 0) continue;
+    for (uint32_t n : mesh.neighbours(v))
+      if (labels[n] >= 0) {
+        frontier.push_back(v);
+        break;
+      }
+  }
+  // Layered BFS: a free vertex takes the label of its lowest-id labelled neighbour of the
+  // previous layer, so the result does not depend on queue order subtleties.
+  std::vector<uint32_t> next;
+  while (!frontier.empty()) {
+    next.clear();
+    std::vector<std::pair<uint32_t, int32_t>> assign;
+    assign.reserve(frontier.size());
+    for (uint32_t v : frontier) {
+      if (labels[v] >= 0) continue;
+      for (uint32_t n : mesh.neighbours(v))
+        if (labels[n] >= 0) {
+          assign.push_back({v, labels[n]});
+          break;
+        }
+    }
+    for (auto [v, l] : assign) labels[v] = l;
+    for (auto [v, l] : assign)
+      for (uint32_t n : mesh.neighbours(v))
+        if (labels[n] < 0) next.push_back(n);
+    std::sort(next.begin(), next.end());
+    next.erase(std::unique(next.begin(), next.end()), next.end());
+    frontier.swap(next);
+  }
+}
+
+}  // namespace streamcvd

@@ -1,0 +1,22 @@
+// Linear 1→4 subdivision (paper §VI-F: remeshing by over-sampling, so that N can approach or
+// exceed the input vertex count).
+#pragma once
+
+#include <cstdint>
+
+#include "core/mesh_buffers.h"
+#include "core/mesh_view.h"
+
+namespace streamcvd {
+
+/// One level of linear subdivision: each edge gets its midpoint, each triangle becomes four
+/// (orientation kept). Degenerate faces (repeated index) are copied unchanged. Unreferenced
+/// vertices are kept. V' = V + E, F' = 4F. O(F log F) (edges by sorting).
+MeshBuffers subdivide_linear(const TriangleSoupView& mesh);
+
+/// Levels of subdivision for `input_vertices` → `clusters`: `requested` ≥ 0 is used as is;
+/// −1 (auto) subdivides until there are at least `min_vertices_per_cluster` input vertices per
+/// cluster (each level multiplies V by about 4), at most 6 levels.
+int subdivision_levels(uint64_t input_vertices, uint64_t clusters, int requested, double min_vertices_per_cluster = 10.0);
+
+}  // namespace streamcvd

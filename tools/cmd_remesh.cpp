@@ -1,0 +1,184 @@
+// `streamcvd remesh`: the main job. Reads a mesh or store, remeshes it to N vertices, writes the
+// output atomically, checks the output guarantees and writes a JSON report.
+#include <unistd.h>
+
+#include <cstdio>
+#include <memory>
+
+#include "core/errors.h"
+#include "streaming/mesh_io.h"
+#include "streaming/output_file.h"
+#include "streaming/remesh_pipeline.h"
+#include "tools/commands.h"
+
+namespace streamcvd::cli {
+
+nlohmann::json quality_json(const QualityStats& q);  // cmd_inspect.cpp
+void print_quality(const QualityStats& q);
+
+namespace {
+
+struct RemeshArgs {
+  std::string input, output, report, subdivide = "auto", small_components = "keep";
+  uint32_t vertices = 10000;
+  uint64_t seed = RemeshOptions{}.seed;
+  bool no_strips = false, ascii = false, quiet = false;
+};
+
+// The output guarantees of a run (issue: closed manifold in → closed, oriented manifold out).
+nlohmann::json guarantee_checks(const PipelineResult& r, uint32_t requested, bool& all_ok) {
+  const TopologyStats& out = r.output_topology;
+  const RemeshResult& rm = r.remesh;
+  uint64_t cluster_vertices = out.vertices - rm.boundary_vertices_added;
+  bool closed_in = r.input.closed;
+  bool single_component = r.input.components == 1;
+  nlohmann::json j = {
+      {"input_closed_manifold", closed_in},
+      {"output_closed_manifold", out.closed_manifold},
+      {"output_consistently_oriented", out.consistently_oriented},
+      {"output_nonmanifold_edges", out.nonmanifold_edges},
+      {"output_nonmanifold_vertices", out.nonmanifold_vertices},
+      {"output_duplicate_faces", out.duplicate_faces},
+      {"output_degenerate_faces", out.degenerate_faces},
+      {"output_isolated_vertices", out.isolated_vertices},
+      {"clusters_connected", rm.clusters_connected},
+      {"defect_vertices_after_repair", rm.defect_vertices},
+      {"requested_vertices", requested},
+      {"cluster_vertices", cluster_vertices},
+      {"boundary_strip_vertices", rm.boundary_vertices_added},
+      {"exact_vertex_count", cluster_vertices == requested},
+      {"input_euler_characteristic", r.input.euler_characteristic},
+      {"output_euler_characteristic", out.euler_characteristic},
+  };
+  if (!rm.budget.note.empty()) j["vertex_count_note"] = rm.budget.note;
+  bool manifold_ok = out.nonmanifold_edges == 0 && out.nonmanifold_vertices == 0 && out.duplicate_faces == 0 &&
+                     out.degenerate_faces == 0 && out.isolated_vertices == 0;
+  bool closed_ok = !closed_in || (out.closed_manifold && out.consistently_oriented);
+  bool genus_ok = !closed_in || out.euler_characteristic == r.input.euler_characteristic;
+  if (closed_in && single_component) j["genus_preserved"] = genus_ok;
+  else if (closed_in) j["euler_characteristic_preserved"] = genus_ok;
+  j["manifold_ok"] = manifold_ok;
+  j["closed_ok"] = closed_ok;
+  all_ok = manifold_ok && closed_ok && rm.defect_vertices == 0;
+  j["all_ok"] = all_ok;
+  return j;
+}
+
+}  // namespace
+
+void add_remesh_command(CLI::App& app) {
+  auto args = std::make_shared<RemeshArgs>();
+  auto* cmd = app.add_subcommand("remesh", "Remesh a mesh to N vertices by discrete centroidal Voronoi clustering");
+  cmd->add_option("input", args->input, "Mesh file (PLY/OBJ/OFF/STL, optionally .zst) or store directory")->required();
+  cmd->add_option("-o,--output", args->output, "Output mesh (.ply .obj .off .stl, optionally + .zst)")->required();
+  cmd->add_option("-n,--vertices", args->vertices, "Output vertex budget N")->required()->check(CLI::Range(1u, 2000000000u));
+  cmd->add_option("--seed", args->seed, "Seed of the initial sampling (same seed, same output)")->capture_default_str();
+  cmd->add_option("--report", args->report, "Write a JSON report of the run to this file");
+  cmd->add_option("--subdivide", args->subdivide,
+                  "Linear 1->4 subdivision first: auto (when fewer than ~10 input vertices per cluster), none, or K levels")
+      ->capture_default_str();
+  cmd->add_option("--small-components", args->small_components,
+                  "Components too small for one cluster of the budget: keep (give them the few clusters they need) or drop")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"keep", "drop"}));
+  cmd->add_flag("--no-boundary-strips", args->no_strips, "Do not add the triangle strips along input boundaries (§VI-D)");
+  cmd->add_flag("--ascii", args->ascii, "Write ascii PLY");
+  cmd->add_flag("-q,--quiet", args->quiet, "No summary on stderr");
+  cmd->callback([args] {
+    PipelineOptions options;
+    options.remesh.vertices = args->vertices;
+    options.remesh.seed = args->seed;
+    options.remesh.boundary_strips = !args->no_strips;
+    options.remesh.small_components = args->small_components == "drop" ? SmallComponents::Drop : SmallComponents::Keep;
+    if (args->subdivide == "auto") options.subdivide = -1;
+    else if (args->subdivide == "none") options.subdivide = 0;
+    else {
+      try {
+        size_t used = 0;
+        options.subdivide = std::stoi(args->subdivide, &used);
+        if (used != args->subdivide.size() || options.subdivide < 0 || options.subdivide > 6) throw std::invalid_argument("");
+      } catch (const std::exception&) {
+        throw InputError("--subdivide: expected auto, none or a level 0-6, got '" + args->subdivide + "'");
+      }
+    }
+    format_from_path(args->output);  // reject an unknown output extension before the work
+    install_signal_cleanup();
+    double t0 = now_seconds();
+    PipelineResult r = remesh_path(args->input, options);
+    double t_write = now_seconds();
+    WriteOptions write_options;
+    write_options.ascii = args->ascii;
+    write_options.comment = "streamcvd remesh -n " + std::to_string(args->vertices) + " --seed " + std::to_string(args->seed);
+    write_mesh(args->output, r.remesh.mesh.view(), write_options);
+    double write_seconds = now_seconds() - t_write;
+    double total = now_seconds() - t0;
+    bool all_ok = false;
+    nlohmann::json checks = guarantee_checks(r, args->vertices, all_ok);
+    const RemeshResult& rm = r.remesh;
+    const ClusteringReport& cr = rm.clustering;
+    if (!args->report.empty()) {
+      nlohmann::json j;
+      j["input"] = {{"file", args->input},
+                    {"vertices", r.input.vertices},
+                    {"faces", r.input.faces},
+                    {"components", r.input.components},
+                    {"closed_manifold", r.input.closed},
+                    {"euler_characteristic", r.input.euler_characteristic},
+                    {"subdivision_levels", r.subdivision_levels},
+                    {"remeshed_vertices", r.remeshed_vertices},
+                    {"remeshed_faces", r.remeshed_faces}};
+      j["options"] = {{"vertices", args->vertices},
+                      {"seed", args->seed},
+                      {"metric", "I"},
+                      {"subdivide", args->subdivide},
+                      {"small_components", args->small_components},
+                      {"boundary_strips", !args->no_strips}};
+      j["seconds"] = {{"load", r.load_seconds},          {"store", r.store_seconds},
+                      {"subdivide", r.subdivide_seconds}, {"items", rm.seconds.items},
+                      {"sampling", rm.seconds.sampling},  {"clustering", rm.seconds.clustering},
+                      {"repair", rm.seconds.repair},      {"dual", rm.seconds.dual},
+                      {"write", write_seconds},           {"total", total}};
+      j["clustering"] = {{"clusters", rm.clusters},
+                         {"unconstrained_loops", cr.unconstrained_loops},
+                         {"constrained_loops", cr.constrained_loops},
+                         {"moves_per_loop", cr.moves_per_loop},
+                         {"energy_per_loop", cr.energy_per_loop},
+                         {"seconds_per_loop", cr.seconds_per_loop},
+                         {"cleaned_vertices", cr.cleaned_vertices},
+                         {"disconnected_clusters_cleaned", cr.disconnected_clusters},
+                         {"final_energy", rm.final_energy},
+                         {"repair_rounds", rm.repair_rounds_used},
+                         {"repaired_clusters", rm.repaired_clusters}};
+      j["components"] = {{"count", rm.budget.clusters_per_component.size()},
+                         {"small_kept", rm.budget.small_components_kept},
+                         {"dropped", rm.budget.components_dropped}};
+      j["output"] = {{"file", args->output},
+                     {"vertices", r.output_topology.vertices},
+                     {"faces", r.output_topology.faces},
+                     {"boundary_edges", r.output_topology.boundary_edges},
+                     {"boundary_loops", r.output_topology.boundary_loops},
+                     {"holes_closed", rm.holes_closed},
+                     {"duplicate_faces_removed", rm.duplicate_faces_removed},
+                     {"components", r.output_topology.components}};
+      j["quality"] = quality_json(r.output_quality);
+      j["checks"] = checks;
+      j["peak_rss_bytes"] = peak_rss_bytes();
+      write_file_atomic(args->report, j.dump(2) + "\n");
+    }
+    if (!args->quiet) {
+      std::fprintf(stderr, "remesh: %s -> %s\n", args->input.c_str(), args->output.c_str());
+      std::fprintf(stderr, "  input  %llu vertices, %llu faces, %llu components%s\n",
+                   (unsigned long long)r.input.vertices, (unsigned long long)r.input.faces,
+                   (unsigned long long)r.input.components, r.subdivision_levels ? " (subdivided)" : "");
+      std::fprintf(stderr, "  output %llu vertices, %llu faces (%u clusters), Qav %.3f, angles<30 %.2f%%\n",
+                   (unsigned long long)r.output_topology.vertices, (unsigned long long)r.output_topology.faces,
+                   rm.clusters, r.output_quality.q_avg, r.output_quality.percent_angles_below_30);
+      std::fprintf(stderr, "  loops  %u + %u, repair rounds %u; time %.2f s (load %.2f, clustering %.2f); peak %.0f MB\n",
+                   cr.unconstrained_loops, cr.constrained_loops, rm.repair_rounds_used, total, r.load_seconds,
+                   rm.seconds.clustering, double(peak_rss_bytes()) / 1e6);
+      std::fprintf(stderr, "  checks %s\n", all_ok ? "all passed" : checks.dump().c_str());
+    }
+  });
+}
+
+}  // namespace streamcvd::cli

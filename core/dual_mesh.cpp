@@ -52,14 +52,13 @@ std::vector<BoundaryEdge> directed_boundary_edges(const MeshView& mesh) {
   return edges;
 }
 
-// Appends the §VI-D strip of every boundary loop: for each change of cluster a → b along the
-// loop, a vertex p at the middle of that boundary edge and the triangles (p, b, a) and
-// (p, p_next, b). Loops meeting fewer than three clusters close instead. Loops meeting exactly two clusters are reported instead (the strip would fold).
-void add_boundary_strips(const MeshView& mesh, std::span<const int32_t> labels,
-                         std::span<const uint32_t> output_of_cluster, std::span<const uint32_t> cluster_size,
-                         DualMesh& dual, std::vector<Triple>& faces) {
+}  // namespace
+
+BoundaryLoops find_boundary_loops(const MeshView& mesh) {
+  BoundaryLoops loops;
+  loops.offsets.push_back(0);
   std::vector<BoundaryEdge> edges = directed_boundary_edges(mesh);
-  if (edges.empty()) return;
+  if (edges.empty()) return loops;
   const uint32_t V = mesh.vertex_count();
   // Successor of each boundary edge: the unique boundary edge leaving its `to` vertex.
   std::vector<uint32_t> out_begin(V + 1, 0);
@@ -70,14 +69,13 @@ void add_boundary_strips(const MeshView& mesh, std::span<const int32_t> labels,
   auto simple = [&](uint32_t v) { return out_begin[v + 1] - out_begin[v] == 1 && in_count[v] == 1; };
   std::vector<uint8_t> visited(edges.size(), 0);
   std::vector<uint32_t> loop;
-  const float* P = mesh.positions.data();
   for (uint32_t start = 0; start < edges.size(); ++start) {
     if (visited[start]) continue;
     loop.clear();
     bool closed = false, usable = true;
     for (uint32_t e = start;;) {
       visited[e] = 1;
-      loop.push_back(e);
+      loop.push_back(edges[e].from);
       uint32_t v = edges[e].to;
       if (!simple(v)) { usable = false; break; }
       uint32_t next = out_begin[v];
@@ -85,15 +83,38 @@ void add_boundary_strips(const MeshView& mesh, std::span<const int32_t> labels,
       if (visited[next]) { usable = false; break; }
       e = next;
     }
-    if (!closed || !usable) {  // non-manifold boundary vertex: no strip through it
-      ++dual.loops_skipped;
+    if (!closed || !usable) {  // through a non-manifold boundary vertex: no strip there
+      ++loops.skipped;
       continue;
     }
+    loops.vertices.insert(loops.vertices.end(), loop.begin(), loop.end());
+    loops.offsets.push_back(uint32_t(loops.vertices.size()));
+  }
+  return loops;
+}
+
+namespace {
+
+// Appends the §VI-D strip of every boundary loop: for each change of cluster a → b along the
+// loop, a vertex p at the middle of that boundary edge and the triangles (p, b, a) and
+// (p, p_next, b). Loops meeting fewer than three clusters close instead.
+void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
+                         std::span<const uint32_t> output_of_cluster, std::span<const uint32_t> cluster_size,
+                         DualMesh& dual, std::vector<Triple>& faces) {
+  const float* P = mesh.positions.data();
+  dual.loops_skipped = loops.skipped;
+  for (size_t l = 0; l + 1 < loops.offsets.size(); ++l) {
+    std::span<const uint32_t> loop(loops.vertices.data() + loops.offsets[l], loops.offsets[l + 1] - loops.offsets[l]);
+    const size_t n = loop.size();
+    struct Edge {
+      uint32_t from, to;
+    };
+    auto edge = [&](size_t k) { return Edge{loop[k], loop[(k + 1) % n]}; };
     // Cluster changes along the loop.
     std::vector<uint32_t> changes;
     bool labelled = true;
     for (uint32_t k = 0; k < loop.size(); ++k) {
-      int32_t a = labels[edges[loop[k]].from], b = labels[edges[loop[k]].to];
+      int32_t a = labels[edge(k).from], b = labels[edge(k).to];
       if (a < 0 || b < 0) { labelled = false; break; }
       if (a != b) changes.push_back(k);
     }
@@ -112,14 +133,14 @@ void add_boundary_strips(const MeshView& mesh, std::span<const int32_t> labels,
     // Clusters of one vertex all along the loop: the dual boundary is the input boundary
     // already (a component copied as it is); a strip would only add flat triangles.
     bool all_single = changes.size() == loop.size();
-    for (uint32_t k = 0; all_single && k < loop.size(); ++k) all_single = cluster_size[labels[edges[loop[k]].from]] == 1;
+    for (uint32_t k = 0; all_single && k < loop.size(); ++k) all_single = cluster_size[labels[loop[k]]] == 1;
     if (all_single) continue;
     // One strip point per change, except that consecutive changes whose midpoints coincide
     // (coincident input vertices) share one point, so no strip triangle is flat.
     std::vector<std::array<float, 3>> points;
     std::vector<uint32_t> point_of_change(changes.size());
     for (uint32_t t = 0; t < changes.size(); ++t) {
-      const BoundaryEdge& e = edges[loop[changes[t]]];
+      const Edge e = edge(changes[t]);
       std::array<float, 3> p;
       for (int c = 0; c < 3; ++c) p[c] = 0.5f * (P[3 * e.from + c] + P[3 * e.to + c]);
       if (!points.empty() && points.back() == p) {
@@ -145,7 +166,7 @@ void add_boundary_strips(const MeshView& mesh, std::span<const int32_t> labels,
     }
     dual.boundary_vertices_added += points.size();
     for (uint32_t t = 0; t < changes.size(); ++t) {
-      const BoundaryEdge& e = edges[loop[changes[t]]];
+      const Edge e = edge(changes[t]);
       uint32_t a = output_of_cluster[labels[e.from]], b = output_of_cluster[labels[e.to]];
       uint32_t p = first_new + point_of_change[t];
       uint32_t p_next = first_new + point_of_change[(t + 1) % changes.size()];
@@ -158,7 +179,8 @@ void add_boundary_strips(const MeshView& mesh, std::span<const int32_t> labels,
 }  // namespace
 
 DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count,
-                         std::span<const double> cluster_positions, const DualMeshOptions& options) {
+                         std::span<const double> cluster_positions, const DualMeshOptions& options,
+                         const BoundaryLoops* boundary_loops) {
   DualMesh dual;
   // Non-empty clusters, in id order, become the output vertices.
   std::vector<uint32_t> cluster_size(cluster_count, 0);
@@ -178,7 +200,14 @@ DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, 
     if (a < 0 || b < 0 || c < 0 || a == b || b == c || a == c) continue;
     faces.push_back(canonical_rotation(output_of_cluster[a], output_of_cluster[b], output_of_cluster[c]));
   }
-  if (options.boundary_strips) add_boundary_strips(mesh, labels, output_of_cluster, cluster_size, dual, faces);
+  if (options.boundary_strips) {
+    if (boundary_loops) {
+      add_boundary_strips(mesh, *boundary_loops, labels, output_of_cluster, cluster_size, dual, faces);
+    } else {
+      BoundaryLoops loops = find_boundary_loops(mesh);
+      add_boundary_strips(mesh, loops, labels, output_of_cluster, cluster_size, dual, faces);
+    }
+  }
   tbb::parallel_sort(faces.begin(), faces.end());
   size_t before = faces.size();
   faces.erase(std::unique(faces.begin(), faces.end()), faces.end());

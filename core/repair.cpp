@@ -25,24 +25,27 @@ uint32_t farthest_in_cluster(const MeshView& mesh, std::span<const int32_t> labe
 }  // namespace
 
 bool split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
-                   int32_t new_label) {
+                   int32_t new_label, SplitScratch& scratch) {
   if (members.size() < 2) return false;
   const int32_t c = labels[members[0]];
-  // Local stamps over the members only (a cluster is small): map by sorting.
-  std::vector<uint32_t> queue, stamp(mesh.vertex_count(), 0);
-  uint32_t s1 = farthest_in_cluster(mesh, labels, members[0], queue, stamp, 1);
-  uint32_t s2 = farthest_in_cluster(mesh, labels, s1, queue, stamp, 2);
+  if (scratch.stamp.size() != mesh.vertex_count()) scratch.stamp.assign(mesh.vertex_count(), 0);
+  std::vector<uint32_t>& stamp = scratch.stamp;
+  const uint32_t mark = scratch.next_mark;
+  scratch.next_mark += 3;
+  std::vector<uint32_t> queue;
+  uint32_t s1 = farthest_in_cluster(mesh, labels, members[0], queue, stamp, mark);
+  uint32_t s2 = farthest_in_cluster(mesh, labels, s1, queue, stamp, mark + 1);
   if (s1 == s2) return false;
   // Two-source BFS: each member joins the seed that reaches it first; both halves connected.
   std::vector<uint32_t> frontier = {s1, s2};
-  stamp[s1] = 3;
-  stamp[s2] = 3;
+  stamp[s1] = mark + 2;
+  stamp[s2] = mark + 2;
   labels[s2] = new_label;
   for (size_t h = 0; h < frontier.size(); ++h) {
     uint32_t u = frontier[h];
     for (uint32_t n : mesh.neighbours(u))
-      if (labels[n] == c && stamp[n] != 3) {
-        stamp[n] = 3;
+      if (labels[n] == c && stamp[n] != mark + 2) {
+        stamp[n] = mark + 2;
         labels[n] = labels[u];
         frontier.push_back(n);
       }
@@ -93,6 +96,7 @@ std::vector<int32_t> repair_clusters(const MeshView& mesh, const ItemData& items
     list.erase(std::unique(list.begin(), list.end()), list.end());
     for (int32_t n : list) near[n] = 1;
   }
+  SplitScratch scratch;
   std::vector<int32_t> touched;
   std::vector<int32_t> free_ids;    // ids released by dissolved islands and merges
   std::vector<int32_t> to_split;
@@ -111,38 +115,41 @@ std::vector<int32_t> repair_clusters(const MeshView& mesh, const ItemData& items
   }
   // Compensate so that the number of non-empty clusters stays K.
   if (to_split.size() > free_ids.size()) {
-    // Merge the lightest adjacent pairs away from every defect.
-    struct Pair {
-      double weight;
-      int32_t a, b;
-    };
-    std::vector<Pair> pairs;
+    // Merge light adjacent pairs away from every defect: each cluster proposes its lightest
+    // neighbour, proposals are taken lightest first (O(E) scan + O(K log K) sort).
+    std::vector<int32_t> partner(K, -1);
     for (uint32_t v = 0; v < V; ++v) {
       int32_t a = labels[v];
       if (a < 0 || near[a] || !adjustable[a]) continue;
       for (uint32_t n : mesh.neighbours(v)) {
         int32_t b = labels[n];
-        if (b > a && !near[b] && adjustable[b]) pairs.push_back({weight[a] + weight[b], a, b});
+        if (b < 0 || b == a || near[b] || !adjustable[b]) continue;
+        if (partner[a] < 0 || weight[b] < weight[partner[a]] || (weight[b] == weight[partner[a]] && b < partner[a]))
+          partner[a] = b;
       }
     }
-    std::sort(pairs.begin(), pairs.end(), [](const Pair& x, const Pair& y) {
-      return x.weight != y.weight ? x.weight < y.weight : (x.a != y.a ? x.a < y.a : x.b < y.b);
-    });
+    std::vector<int32_t> proposers;
+    for (uint32_t a = 0; a < K; ++a)
+      if (partner[a] >= 0) proposers.push_back(int32_t(a));
+    auto pair_weight = [&](int32_t a) { return weight[a] + weight[partner[a]]; };
+    std::stable_sort(proposers.begin(), proposers.end(),
+                     [&](int32_t x, int32_t y) { return pair_weight(x) < pair_weight(y); });
     std::vector<uint8_t> used(K, 0);
-    for (const Pair& p : pairs) {
+    for (int32_t a : proposers) {
       if (to_split.size() <= free_ids.size()) break;
-      if (used[p.a] || used[p.b]) continue;
-      used[p.a] = used[p.b] = 1;
-      for (uint32_t v : members_of(p.b)) labels[v] = p.a;
-      free_ids.push_back(p.b);
-      touched.push_back(p.a);
+      int32_t b = partner[a];
+      if (used[a] || used[b]) continue;
+      used[a] = used[b] = 1;
+      for (uint32_t v : members_of(b)) labels[v] = a;
+      free_ids.push_back(b);
+      touched.push_back(a);
       ++stats.merges;
     }
     to_split.resize(std::min(to_split.size(), free_ids.size()));
   }
   for (int32_t c : to_split) {
     int32_t id = free_ids.back();
-    if (!split_cluster(mesh, labels, members_of(c), id)) continue;
+    if (!split_cluster(mesh, labels, members_of(c), id, scratch)) continue;
     free_ids.pop_back();
     touched.push_back(c);
     touched.push_back(id);
@@ -159,7 +166,7 @@ std::vector<int32_t> repair_clusters(const MeshView& mesh, const ItemData& items
       // Members recorded before merges: only clusters untouched this round are split here.
       if (std::find(touched.begin(), touched.end(), c) != touched.end()) continue;
       int32_t id = free_ids.back();
-      if (!split_cluster(mesh, labels, members_of(c), id)) continue;
+      if (!split_cluster(mesh, labels, members_of(c), id, scratch)) continue;
       free_ids.pop_back();
       touched.push_back(c);
       touched.push_back(id);

@@ -28,9 +28,16 @@ std::vector<int32_t> repair_clusters(const MeshView& mesh, const ItemData& items
                                      uint32_t cluster_count, std::span<const int32_t> defect_clusters,
                                      std::span<const uint8_t> adjustable, RepairRoundStats& stats);
 
-/// Splits cluster `c` in two connected halves grown by BFS from two far-apart vertices of it;
-/// the second half takes label `new_label`. No-op for a cluster of one vertex (returns false).
+/// Per-vertex visit stamps reused across splits (one allocation per repair round).
+struct SplitScratch {
+  std::vector<uint32_t> stamp;
+  uint32_t next_mark = 1;
+};
+
+/// Splits the cluster holding `members` in two connected halves grown by BFS from two far-apart
+/// vertices of it; the second half takes label `new_label`. Returns false (no change) when the
+/// cluster has one vertex. O(cluster size).
 bool split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
-                   int32_t new_label);
+                   int32_t new_label, SplitScratch& scratch);
 
 }  // namespace streamcvd

@@ -1,0 +1,40 @@
+// Connectivity of an indexed triangle mesh as flat CSR arrays (DESIGN.md §2): vertex→face,
+// vertex→vertex, and per-vertex topology flags. Built by counting passes and prefix sums: no
+// per-element allocation, memory = the output plus a few KiB of scratch per thread.
+// All functions are TBB-parallel and deterministic (the output does not depend on the number of
+// threads). Preconditions for every function: triangle indices < vertex_count, face count < 2^32.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace streamcvd {
+
+/// CSR vertex→face: faces of vertex v are faces[offsets[v] .. offsets[v+1]), ascending. Every
+/// corner contributes one entry (faces.size() == triangles.size(), a face repeating a vertex is
+/// listed twice there). offsets gets V+1 entries. O(F + V) time; the vectors are resized (their
+/// capacity is reused).
+void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t vertex_count,
+                                 std::vector<uint64_t>& offsets, std::vector<uint32_t>& faces);
+
+/// CSR vertex→vertex from the triangles and their vertex→face CSR: the neighbours of v (vertices
+/// sharing a face with v, v itself excluded) in ascending order, each once. The result is
+/// symmetric. Two passes (count, fill) over each vertex's faces: O(F · log(valence)) time.
+/// With a non-empty `flags` (V entries) the fill pass also computes compute_vertex_flags' result,
+/// about 30% cheaper than calling both.
+void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
+                                   std::span<const uint32_t> vertex_face, std::vector<uint64_t>& offsets,
+                                   std::vector<uint32_t>& neighbours, std::span<uint8_t> flags = {});
+
+/// VertexFlag bits (core/mesh_view.h) of every vertex into `flags` (V entries):
+///  - kVertexBoundary: v is on an edge {v,u} that exactly one face contains;
+///  - kVertexNonManifold: v is on an edge contained in more than two faces, or its faces do not
+///    form one fan (faces connected through edges {v,u}), e.g. the tip of a bowtie;
+///  - kVertexIsolated: no face references v.
+/// Faces that repeat a vertex count once per vertex; a face (v,v,v) adds no edge and is left out
+/// of v's fan. O(F · log(valence)) time.
+void compute_vertex_flags(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
+                          std::span<const uint32_t> vertex_face, std::span<uint8_t> flags);
+
+}  // namespace streamcvd

@@ -1,0 +1,100 @@
+#include "core/adjacency.h"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "core/mesh_view.h"
+
+namespace streamcvd {
+namespace {
+
+struct Adjacency {
+  std::vector<uint64_t> vf_off, vv_off;
+  std::vector<uint32_t> vf, vv;
+  std::vector<uint8_t> flags;
+
+  Adjacency(const std::vector<uint32_t>& tri, uint32_t v_count) {
+    build_vertex_face_adjacency(tri, v_count, vf_off, vf);
+    build_vertex_vertex_adjacency(tri, vf_off, vf, vv_off, vv);
+    flags.resize(v_count);
+    compute_vertex_flags(tri, vf_off, vf, flags);
+    // The fused pass gives the same neighbours and flags.
+    std::vector<uint64_t> fused_off;
+    std::vector<uint32_t> fused_vv;
+    std::vector<uint8_t> fused_flags(v_count, 0xff);
+    build_vertex_vertex_adjacency(tri, vf_off, vf, fused_off, fused_vv, fused_flags);
+    EXPECT_EQ(fused_off, vv_off);
+    EXPECT_EQ(fused_vv, vv);
+    EXPECT_EQ(fused_flags, flags);
+  }
+  std::vector<uint32_t> faces(uint32_t v) const { return {vf.begin() + vf_off[v], vf.begin() + vf_off[v + 1]}; }
+  std::vector<uint32_t> ring(uint32_t v) const { return {vv.begin() + vv_off[v], vv.begin() + vv_off[v + 1]}; }
+};
+
+using V = std::vector<uint32_t>;
+
+TEST(Adjacency, Tetrahedron) {
+  Adjacency a({0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2}, 4);
+  EXPECT_EQ(a.vf_off, (std::vector<uint64_t>{0, 3, 6, 9, 12}));
+  EXPECT_EQ(a.faces(0), (V{0, 1, 3}));
+  EXPECT_EQ(a.faces(3), (V{1, 2, 3}));
+  EXPECT_EQ(a.ring(0), (V{1, 2, 3}));
+  EXPECT_EQ(a.ring(2), (V{0, 1, 3}));
+  for (uint8_t f : a.flags) EXPECT_EQ(f, 0);
+}
+
+TEST(Adjacency, QuadHasBoundaryEverywhere) {
+  Adjacency a({0, 1, 2, 0, 2, 3}, 4);
+  EXPECT_EQ(a.ring(0), (V{1, 2, 3}));
+  EXPECT_EQ(a.ring(1), (V{0, 2}));
+  EXPECT_EQ(a.faces(2), (V{0, 1}));
+  for (uint8_t f : a.flags) EXPECT_EQ(f, kVertexBoundary);
+}
+
+TEST(Adjacency, BowtieFinAndIsolatedVertex) {
+  // Bowtie: triangles (0,1,2) and (0,3,4) share only vertex 0. Fin: three faces on edge {5,6}.
+  // Vertex 10 is referenced by nothing.
+  Adjacency a({0, 1, 2, 0, 3, 4, 5, 6, 7, 6, 5, 8, 5, 6, 9}, 11);
+  EXPECT_EQ(a.flags[0], kVertexBoundary | kVertexNonManifold);
+  for (uint32_t v : {1u, 2u, 3u, 4u, 7u, 8u, 9u}) EXPECT_EQ(a.flags[v], kVertexBoundary) << v;
+  EXPECT_EQ(a.flags[5], kVertexBoundary | kVertexNonManifold);
+  EXPECT_EQ(a.flags[6], kVertexBoundary | kVertexNonManifold);
+  EXPECT_EQ(a.flags[10], kVertexIsolated);
+  EXPECT_TRUE(a.faces(10).empty());
+  EXPECT_TRUE(a.ring(10).empty());
+  EXPECT_EQ(a.ring(5), (V{6, 7, 8, 9}));
+}
+
+TEST(Adjacency, ClosedFansWithoutBoundaryAreManifoldButTwoConesAreNot) {
+  // Two closed tetrahedra glued at vertex 0: no boundary edge, yet vertex 0 has two fans.
+  Adjacency a({0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2, 0, 5, 4, 0, 4, 6, 4, 5, 6, 0, 6, 5}, 7);
+  EXPECT_EQ(a.flags[0], kVertexNonManifold);
+  for (uint32_t v = 1; v < 7; ++v) EXPECT_EQ(a.flags[v], 0) << v;
+}
+
+TEST(Adjacency, DegenerateFacesDoNotBreakCounts) {
+  // Face 1 repeats vertex 0; face 2 is a point. Every corner still has one vertex-face entry.
+  Adjacency a({0, 1, 2, 0, 0, 1, 3, 3, 3}, 4);
+  EXPECT_EQ(a.vf.size(), 9u);
+  EXPECT_EQ(a.faces(0), (V{0, 1, 1}));
+  EXPECT_EQ(a.faces(3), (V{2, 2, 2}));
+  EXPECT_EQ(a.ring(0), (V{1, 2}));
+  EXPECT_TRUE(a.ring(3).empty());
+  // Edge {0,1} is in faces 0 and 1 (two faces); {0,2} and {1,2} in one.
+  EXPECT_EQ(a.flags[0], kVertexBoundary);
+  EXPECT_EQ(a.flags[3], 0);  // only a point face: no edges, not isolated
+}
+
+TEST(Adjacency, EmptyMesh) {
+  Adjacency a({}, 3);
+  EXPECT_EQ(a.vf_off, (std::vector<uint64_t>{0, 0, 0, 0}));
+  EXPECT_EQ(a.vv_off, (std::vector<uint64_t>{0, 0, 0, 0}));
+  for (uint8_t f : a.flags) EXPECT_EQ(f, kVertexIsolated);
+  Adjacency none({}, 0);
+  EXPECT_EQ(none.vf_off.size(), 1u);
+  EXPECT_EQ(none.vv_off.size(), 1u);
+}
+
+}  // namespace
+}  // namespace streamcvd

@@ -1,0 +1,145 @@
+// Wavefront OBJ reader: `v` and `f` records only, polygons fan-triangulated.
+// One pass over next_line() views with a hand tokenizer and fast_float; no iostreams.
+#include <fast_float/fast_float.h>
+
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/errors.h"
+#include "streaming/input_stream.h"
+#include "streaming/mesh_io.h"
+
+namespace streamcvd {
+
+namespace {
+
+constexpr uint64_t kMaxVertices = std::numeric_limits<uint32_t>::max();
+
+inline bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+
+/// Next whitespace-separated token of [p, e), advancing p; empty at the end of the line or at
+/// a '#' comment.
+inline std::string_view next_token(const char*& p, const char* e) {
+  while (p < e && is_space(*p)) ++p;
+  if (p == e || *p == '#') {
+    p = e;
+    return {};
+  }
+  const char* s = p;
+  while (p < e && !is_space(*p)) ++p;
+  return {s, size_t(p - s)};
+}
+
+std::string quoted(std::string_view tok) {
+  constexpr size_t kShown = 40;  // keep error messages one short line
+  std::string s(tok.substr(0, kShown));
+  for (char& c : s)
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
+  return "'" + s + (tok.size() > kShown ? "...'" : "'");
+}
+
+/// One coordinate: the whole token must be a finite number (fast_float rejects a leading '+').
+float parse_coordinate(InputStream& in, std::string_view tok) {
+  const char* p = tok.data();
+  const char* e = p + tok.size();
+  if (p < e && *p == '+' && p + 1 < e && p[1] != '-') ++p;
+  float v = 0;
+  auto r = fast_float::from_chars(p, e, v);
+  if (r.ec != std::errc() || r.ptr != e) in.fail("bad number " + quoted(tok));
+  if (!std::isfinite(v)) in.fail("coordinate is not finite: " + quoted(tok));
+  return v;
+}
+
+/// Where a positive index points past the vertices defined so far; checked at the end, when the
+/// total is known (the largest such index is the only one that matters).
+struct ForwardReference {
+  uint64_t index = 0;  // 1-based, as written
+  uint64_t line = 0;
+};
+
+/// One face corner "v", "v/vt", "v/vt/vn" or "v//vn" → 0-based vertex index. Negative indices
+/// count back from the last vertex defined so far.
+uint32_t parse_corner(InputStream& in, std::string_view tok, uint64_t defined, ForwardReference& forward) {
+  const char* p = tok.data();
+  const char* e = p + tok.size();
+  if (p < e && *p == '+') ++p;
+  int64_t v = 0;
+  auto r = std::from_chars(p, e, v);
+  if (r.ec == std::errc::result_out_of_range) in.fail("face index out of range " + quoted(tok));
+  if (r.ec != std::errc() || (r.ptr != e && *r.ptr != '/')) in.fail("bad face index " + quoted(tok));
+  if (v == 0) in.fail("face index 0 (OBJ indices start at 1)");
+  if (v < 0) {
+    uint64_t back = uint64_t(-(v + 1)) + 1;  // |v| without overflow at INT64_MIN
+    if (back > defined)
+      in.fail("relative face index " + std::to_string(v) + " refers before the first vertex (" +
+              std::to_string(defined) + " defined so far)");
+    return uint32_t(defined - back);
+  }
+  if (uint64_t(v) > kMaxVertices) in.fail("face index " + std::to_string(v) + " is too large");
+  if (uint64_t(v) > defined && uint64_t(v) > forward.index) forward = {uint64_t(v), in.line_number()};
+  return uint32_t(v - 1);
+}
+
+}  // namespace
+
+MeshBuffers read_obj(InputStream& in) {
+  MeshBuffers mesh;
+  std::vector<uint32_t> corners;
+  ForwardReference forward;
+  std::string joined;  // a logical line assembled from backslash-continued physical lines
+  std::string_view line;
+  while (in.next_line(line)) {
+    if (!line.empty() && line.back() == '\\') {
+      // Rare: "\" at the end of a line continues the record on the next one.
+      joined.assign(line.substr(0, line.size() - 1));
+      std::string_view more;
+      bool again = true;
+      while (again && in.next_line(more)) {
+        again = !more.empty() && more.back() == '\\';
+        joined.push_back(' ');
+        joined.append(more.substr(0, more.size() - (again ? 1 : 0)));
+      }
+      line = joined;
+    }
+    const char* p = line.data();
+    const char* e = p + line.size();
+    std::string_view key = next_token(p, e);
+    if (key.size() != 1) continue;  // blank, comment, vt, vn, vp, usemtl, mtllib, ...
+    if (key[0] == 'v') {
+      float xyz[3];
+      for (float& c : xyz) {
+        std::string_view tok = next_token(p, e);
+        if (tok.empty()) in.fail("vertex needs 3 coordinates");
+        c = parse_coordinate(in, tok);
+      }
+      // An optional w and per-vertex colours may follow; they are ignored.
+      if (mesh.positions.size() / 3 >= kMaxVertices) in.fail("more than 4294967295 vertices");
+      mesh.positions.insert(mesh.positions.end(), xyz, xyz + 3);
+    } else if (key[0] == 'f') {
+      uint64_t defined = mesh.positions.size() / 3;
+      corners.clear();
+      for (std::string_view tok = next_token(p, e); !tok.empty(); tok = next_token(p, e))
+        corners.push_back(parse_corner(in, tok, defined, forward));
+      if (corners.size() < 3)
+        in.fail("face with " + std::to_string(corners.size()) + " corners (at least 3 needed)");
+      for (size_t i = 1; i + 1 < corners.size(); ++i)
+        mesh.triangles.insert(mesh.triangles.end(), {corners[0], corners[i], corners[i + 1]});
+      if (corners.size() > 3) ++mesh.polygons_split;
+    }
+    // Other one-letter records (g, o, s, l, p) are ignored.
+  }
+  uint64_t vertices = mesh.positions.size() / 3;
+  if (vertices == 0) throw InputError(error_at(in.path(), "no vertices ('v' records) in OBJ file"));
+  if (forward.index > vertices)
+    throw InputError(error_at_line(in.path(), forward.line,
+                                   "face index " + std::to_string(forward.index) + " is out of range (the file defines " +
+                                       std::to_string(vertices) + " vertices)"));
+  return mesh;
+}
+
+}  // namespace streamcvd

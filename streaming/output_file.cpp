@@ -1,0 +1,343 @@
+#include "streaming/output_file.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zstd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstring>
+#include <mutex>
+#include <stdexcept>
+
+#include "core/errors.h"
+
+namespace streamcvd {
+
+namespace {
+
+constexpr size_t kBufferSize = size_t(4) << 20;
+constexpr size_t kZstdOutSize = size_t(1) << 20;
+constexpr size_t kMaxNameInTemp = 200;  // keeps ".<name>.tmp.<pid>.<16 hex>" under NAME_MAX
+
+// ---- Registry of live temporary files ------------------------------------------------------
+// A signal handler may run at any instruction of any thread, so it can neither lock nor
+// allocate. Each slot is guarded by a seqlock-like word (generation << 2 | state): the handler
+// copies a live slot and unlinks only if the word did not change meanwhile, so a slot being
+// freed or reused concurrently is never half-read. All fields are atomics, hence no data race.
+// The file is registered before it is created and unregistered after it is removed or
+// renamed, so every temporary file that exists on disk is in the registry (unless all slots
+// are taken, when the file merely loses signal cleanup).
+constexpr int kSlots = 256;
+constexpr size_t kSlotName = 256;
+enum SlotState : uint64_t { kFree = 0, kBusy = 1, kLive = 2 };
+
+struct Slot {
+  std::atomic<uint64_t> word{0};
+  std::atomic<int> dir_fd{-1};
+  std::atomic<pid_t> pid{0};
+  std::atomic<char> name[kSlotName];
+};
+Slot g_slots[kSlots];
+
+uint64_t next_word(uint64_t word, SlotState state) { return (((word >> 2) + 1) << 2) | state; }
+
+int register_temp(int dir_fd, const std::string& name) {
+  if (name.size() >= kSlotName) return -1;
+  for (int i = 0; i < kSlots; ++i) {
+    Slot& s = g_slots[i];
+    uint64_t w = s.word.load(std::memory_order_acquire);
+    if ((w & 3) != kFree) continue;
+    uint64_t busy = next_word(w, kBusy);
+    if (!s.word.compare_exchange_strong(w, busy, std::memory_order_acq_rel)) continue;
+    s.dir_fd.store(dir_fd, std::memory_order_relaxed);
+    s.pid.store(::getpid(), std::memory_order_relaxed);
+    for (size_t k = 0; k <= name.size(); ++k) s.name[k].store(name.c_str()[k], std::memory_order_relaxed);
+    s.word.store(next_word(busy, kLive), std::memory_order_release);
+    return i;
+  }
+  return -1;
+}
+
+void unregister_temp(int slot) {
+  if (slot < 0) return;
+  Slot& s = g_slots[slot];
+  s.word.store(next_word(s.word.load(std::memory_order_relaxed), kFree), std::memory_order_release);
+}
+
+void cleanup_handler(int sig) {
+  remove_temp_files_now();
+  // SA_RESETHAND restored the default action; the signal is blocked while we run, so it is
+  // delivered (and kills the process with the right status) as soon as the handler returns.
+  ::raise(sig);
+}
+
+void ignore_sigxfsz_once() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    struct sigaction old {};
+    if (::sigaction(SIGXFSZ, nullptr, &old) == 0 && !(old.sa_flags & SA_SIGINFO) && old.sa_handler == SIG_DFL) {
+      struct sigaction ign {};
+      ign.sa_handler = SIG_IGN;
+      sigemptyset(&ign.sa_mask);
+      ::sigaction(SIGXFSZ, &ign, nullptr);
+    }
+  });
+}
+
+uint64_t random_suffix() {
+  // Uniqueness, not secrecy: O_EXCL catches collisions and we retry.
+  static std::atomic<uint64_t> counter{0};
+  uint64_t x = uint64_t(std::chrono::steady_clock::now().time_since_epoch().count()) ^
+               (uint64_t(::getpid()) << 32) ^ (counter.fetch_add(1) * 0x9E3779B97F4A7C15ull);
+  x ^= x >> 30;  // splitmix64 finaliser
+  x *= 0xBF58476D1CE4E5B9ull;
+  x ^= x >> 27;
+  x *= 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+std::string hex64(uint64_t v) {
+  static const char digits[] = "0123456789abcdef";
+  std::string s(16, '0');
+  for (int i = 15; i >= 0; --i, v >>= 4) s[size_t(i)] = digits[v & 15];
+  return s;
+}
+
+}  // namespace
+
+void remove_temp_files_now() noexcept {
+  const pid_t self = ::getpid();  // a forked child must not delete its parent's files
+  for (Slot& s : g_slots) {
+    uint64_t w1 = s.word.load(std::memory_order_acquire);
+    if ((w1 & 3) != kLive) continue;
+    int dir_fd = s.dir_fd.load(std::memory_order_relaxed);
+    pid_t pid = s.pid.load(std::memory_order_relaxed);
+    char name[kSlotName];
+    for (size_t k = 0; k < kSlotName; ++k) {
+      name[k] = s.name[k].load(std::memory_order_relaxed);
+      if (name[k] == '\0') break;
+    }
+    name[kSlotName - 1] = '\0';
+    std::atomic_thread_fence(std::memory_order_acquire);
+    if (s.word.load(std::memory_order_relaxed) != w1 || pid != self) continue;
+    ::unlinkat(dir_fd, name, 0);
+  }
+}
+
+void install_signal_cleanup() {
+  for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
+    struct sigaction old {};
+    if (::sigaction(sig, nullptr, &old) != 0) continue;
+    if ((old.sa_flags & SA_SIGINFO) || old.sa_handler != SIG_DFL) continue;  // not ours to replace
+    struct sigaction sa {};
+    sa.sa_handler = cleanup_handler;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESETHAND;
+    ::sigaction(sig, &sa, nullptr);
+  }
+}
+
+// ---- AtomicOutputFile ----------------------------------------------------------------------
+
+struct AtomicOutputFile::Zstd {
+  ZSTD_CCtx* ctx = nullptr;
+  std::unique_ptr<char[]> out;
+  ~Zstd() { ZSTD_freeCCtx(ctx); }
+};
+
+AtomicOutputFile::AtomicOutputFile(std::string path, bool compress, int zstd_level) : path_(std::move(path)) {
+  ignore_sigxfsz_once();
+  size_t slash = path_.find_last_of('/');
+  folder_ = slash == std::string::npos ? "." : slash == 0 ? "/" : path_.substr(0, slash);
+  name_ = slash == std::string::npos ? path_ : path_.substr(slash + 1);
+  if (name_.empty() || name_ == "." || name_ == "..")
+    throw OutputError(error_at(path_, "not a file name"));
+
+  dir_fd_ = ::open(folder_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir_fd_ < 0) {
+    int e = errno;
+    throw OutputError(error_at(path_, e == ENOTDIR ? "'" + folder_ + "' is not a folder"
+                                                   : "cannot open output folder '" + folder_ + "': " + std::strerror(e)));
+  }
+  struct stat st {};
+  if (::fstatat(dir_fd_, name_.c_str(), &st, 0) == 0 && S_ISDIR(st.st_mode)) {
+    ::close(dir_fd_);
+    dir_fd_ = -1;
+    throw OutputError(error_at(path_, "is a directory"));
+  }
+
+  std::string stem(1, '.');
+  stem.append(name_, 0, kMaxNameInTemp).append(".tmp.").append(std::to_string(::getpid())).append(".");
+  for (int attempt = 0; fd_ < 0; ++attempt) {
+    temp_name_ = stem + hex64(random_suffix());
+    slot_ = register_temp(dir_fd_, temp_name_);  // before creating: see the registry comment
+    fd_ = ::openat(dir_fd_, temp_name_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd_ >= 0) break;
+    int e = errno;
+    unregister_temp(slot_);
+    slot_ = -1;
+    if (e == EEXIST && attempt < 16) continue;
+    ::close(dir_fd_);
+    dir_fd_ = -1;
+    throw OutputError(error_at(path_, "cannot create a file in '" + folder_ + "': " + std::strerror(e)));
+  }
+
+  buffer_ = std::make_unique_for_overwrite<char[]>(kBufferSize);
+  capacity_ = kBufferSize;
+  if (compress) {
+    zstd_ = std::make_unique<Zstd>();
+    zstd_->ctx = ZSTD_createCCtx();
+    zstd_->out = std::make_unique_for_overwrite<char[]>(kZstdOutSize);
+    if (!zstd_->ctx) fail("cannot create a zstd compression context");
+    size_t r = ZSTD_CCtx_setParameter(zstd_->ctx, ZSTD_c_compressionLevel, zstd_level);
+    if (!ZSTD_isError(r)) r = ZSTD_CCtx_setParameter(zstd_->ctx, ZSTD_c_checksumFlag, 1);
+    if (ZSTD_isError(r)) fail(std::string("zstd: ") + ZSTD_getErrorName(r));
+  }
+}
+
+AtomicOutputFile::~AtomicOutputFile() { abandon(); }
+
+std::string AtomicOutputFile::temp_path() const {
+  if (done_) return {};
+  return folder_ == "/" ? "/" + temp_name_ : folder_ + "/" + temp_name_;
+}
+
+void AtomicOutputFile::abandon() noexcept {
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
+  if (!done_ && dir_fd_ >= 0 && !temp_name_.empty()) ::unlinkat(dir_fd_, temp_name_.c_str(), 0);
+  unregister_temp(slot_);  // only after the file is gone, and before dir_fd_ can be reused
+  slot_ = -1;
+  if (dir_fd_ >= 0) ::close(dir_fd_);
+  dir_fd_ = -1;
+  done_ = true;
+  buffer_.reset();
+  capacity_ = used_ = 0;  // so prepare() on a dead object reaches make_room() and throws
+  zstd_.reset();
+}
+
+void AtomicOutputFile::fail(const std::string& problem) {
+  abandon();
+  throw OutputError(error_at(path_, problem));
+}
+
+void AtomicOutputFile::write_raw(const char* data, size_t n) {
+  while (n > 0) {
+    ssize_t w = ::write(fd_, data, n);
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      fail(std::string("write failed: ") + std::strerror(errno));
+    }
+    if (w == 0) fail("write failed: no progress");
+    data += w;
+    n -= size_t(w);
+  }
+}
+
+// Hands the buffered bytes to the file, through the compressor if any.
+void AtomicOutputFile::flush_buffer() {
+  if (used_ == 0) return;
+  if (!zstd_) {
+    write_raw(buffer_.get(), used_);
+  } else {
+    ZSTD_inBuffer in{buffer_.get(), used_, 0};
+    while (in.pos < in.size) {
+      ZSTD_outBuffer out{zstd_->out.get(), kZstdOutSize, 0};
+      size_t r = ZSTD_compressStream2(zstd_->ctx, &out, &in, ZSTD_e_continue);
+      if (ZSTD_isError(r)) fail(std::string("zstd: ") + ZSTD_getErrorName(r));
+      write_raw(zstd_->out.get(), out.pos);
+    }
+  }
+  flushed_ += used_;
+  used_ = 0;
+}
+
+void AtomicOutputFile::make_room(size_t n) {
+  if (done_) throw std::logic_error(path_ + ": write after commit or failure");
+  if (n > kMaxPrepare) throw std::logic_error(path_ + ": prepare() larger than kMaxPrepare");
+  flush_buffer();
+}
+
+void AtomicOutputFile::write(const void* data, size_t n) {
+  if (done_) throw std::logic_error(path_ + ": write after commit or failure");
+  const char* p = static_cast<const char*>(data);
+  while (n > 0) {
+    if (used_ == capacity_) flush_buffer();
+    size_t take = std::min(n, capacity_ - used_);
+    if (used_ == 0 && !zstd_ && n >= capacity_) {
+      // Large uncompressed block: skip the copy, go straight to the file.
+      write_raw(p, n);
+      flushed_ += n;
+      written_ += n;
+      return;
+    }
+    std::memcpy(buffer_.get() + used_, p, take);
+    used_ += take;
+    written_ += take;
+    p += take;
+    n -= take;
+  }
+}
+
+void AtomicOutputFile::patch(uint64_t offset, const void* data, size_t n) {
+  if (done_) throw std::logic_error(path_ + ": patch after commit or failure");
+  if (zstd_) throw std::logic_error(path_ + ": patch() on a compressed file");
+  if (offset > written_ || n > written_ - offset) throw std::logic_error(path_ + ": patch() past the written bytes");
+  const char* p = static_cast<const char*>(data);
+  // Part already in the file: pwrite. Part still in the buffer: overwrite it there.
+  while (n > 0 && offset < flushed_) {
+    size_t take = size_t(std::min<uint64_t>(n, flushed_ - offset));
+    ssize_t w = ::pwrite(fd_, p, take, off_t(offset));
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      fail(std::string("write failed: ") + std::strerror(errno));
+    }
+    if (w == 0) fail("write failed: no progress");
+    p += w;
+    offset += uint64_t(w);
+    n -= size_t(w);
+  }
+  if (n > 0) std::memcpy(buffer_.get() + (offset - flushed_), p, n);
+}
+
+void AtomicOutputFile::commit() {
+  if (done_) throw std::logic_error(path_ + ": commit after commit or failure");
+  flush_buffer();
+  if (zstd_) {
+    ZSTD_inBuffer in{nullptr, 0, 0};
+    size_t remaining;
+    do {
+      ZSTD_outBuffer out{zstd_->out.get(), kZstdOutSize, 0};
+      remaining = ZSTD_compressStream2(zstd_->ctx, &out, &in, ZSTD_e_end);
+      if (ZSTD_isError(remaining)) fail(std::string("zstd: ") + ZSTD_getErrorName(remaining));
+      write_raw(zstd_->out.get(), out.pos);
+    } while (remaining != 0);
+  }
+  if (::fsync(fd_) != 0) fail(std::string("fsync failed: ") + std::strerror(errno));
+  int fd = fd_;
+  fd_ = -1;
+  if (::close(fd) != 0) fail(std::string("close failed: ") + std::strerror(errno));
+  if (::renameat(dir_fd_, temp_name_.c_str(), dir_fd_, name_.c_str()) != 0)
+    fail(std::string("cannot rename the temporary file into place: ") + std::strerror(errno));
+  done_ = true;  // the temporary name is gone: abandon() must not unlink it any more
+  // Make the rename itself durable. Some file systems cannot fsync a directory (EINVAL).
+  if (::fsync(dir_fd_) != 0 && errno != EINVAL && errno != EROFS) {
+    int e = errno;
+    ::unlinkat(dir_fd_, name_.c_str(), 0);
+    abandon();
+    throw OutputError(error_at(path_, std::string("fsync of the folder failed: ") + std::strerror(e)));
+  }
+  abandon();
+}
+
+void write_file_atomic(const std::string& path, std::string_view contents) {
+  AtomicOutputFile out(path);
+  out.write(contents);
+  out.commit();
+}
+
+}  // namespace streamcvd

@@ -1,0 +1,107 @@
+// Atomic output files: every byte streamcvd writes goes to a temporary file in the destination
+// folder (".<name>.tmp.<pid>.<random>") that is fsynced and renamed onto the final path only on
+// commit(). A failure, an exception unwinding past the writer, or (after install_signal_cleanup())
+// SIGINT/SIGTERM/SIGHUP never leaves a partial or truncated file behind.
+//
+// Seeking back: patch() rewrites already written bytes of an *uncompressed* file (a streamed
+// writer that learns its face count at the end patches it into a fixed-width header field).
+// Compressed output is a single forward-only zstd stream, so a writer that wants ".zst" must know
+// its counts before it starts (write_mesh always does).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace streamcvd {
+
+/// One output file being written. Not thread-safe: one thread writes a given file (any number
+/// of files may be open at once, from any threads). Not movable: its registry slot names it.
+class AtomicOutputFile {
+ public:
+  /// Opens a temporary file next to `path`. With `compress`, everything written goes through one
+  /// streaming zstd frame (with checksum) at `zstd_level`. Throws OutputError "<path>: <problem>"
+  /// when the folder is missing, not a folder, not writable, or `path` names a directory.
+  /// Ignores SIGXFSZ process-wide (if it has its default action) so that a file-size limit
+  /// (`ulimit -f`) surfaces as an EFBIG error instead of killing the process.
+  explicit AtomicOutputFile(std::string path, bool compress = false, int zstd_level = 3);
+  /// Without commit(): closes and removes the temporary file. Never throws.
+  ~AtomicOutputFile();
+  AtomicOutputFile(const AtomicOutputFile&) = delete;
+  AtomicOutputFile& operator=(const AtomicOutputFile&) = delete;
+
+  /// Appends n bytes (buffered, 4 MiB). Throws OutputError on a write error (disk full, EFBIG,
+  /// I/O error); the temporary file is then already removed and the object is dead.
+  void write(const void* data, size_t n);
+  void write(std::string_view s) { write(s.data(), s.size()); }
+
+  /// Zero-copy formatting: returns a pointer to at least n (≤ 1 MiB) writable bytes at the end
+  /// of the buffer; advance(k) then appends the first k ≤ n of them.
+  char* prepare(size_t n) {
+    if (capacity_ - used_ < n) make_room(n);
+    return buffer_.get() + used_;
+  }
+  void advance(size_t k) {
+    used_ += k;
+    written_ += k;
+  }
+
+  /// Overwrites bytes [offset, offset + n) that were already written (buffered or flushed).
+  /// Uncompressed files only: throws std::logic_error for a compressed file or a range past
+  /// bytes_written(); OutputError on an I/O error.
+  void patch(uint64_t offset, const void* data, size_t n);
+
+  /// Flushes, fsyncs the file, renames it onto the final path and fsyncs the folder.
+  /// Throws OutputError (and removes the temporary file) on failure.
+  void commit();
+
+  /// Logical bytes written so far (before compression).
+  uint64_t bytes_written() const { return written_; }
+  const std::string& path() const { return path_; }
+  /// Full path of the temporary file (empty once committed or failed).
+  std::string temp_path() const;
+  bool compressed() const { return zstd_ != nullptr; }
+
+  static constexpr size_t kMaxPrepare = size_t(1) << 20;
+
+ private:
+  void make_room(size_t n);
+  void flush_buffer();                           // buffer_ → file (compressing if needed)
+  void write_raw(const char* data, size_t n);    // → fd, no buffering
+  [[noreturn]] void fail(const std::string& problem);
+  void abandon() noexcept;                       // close + unlink temp + unregister
+
+  std::string path_;
+  std::string folder_;      // destination folder as given ("." when the path has none)
+  std::string name_;        // final file name inside the folder
+  std::string temp_name_;   // temporary file name inside the folder
+  int dir_fd_ = -1;
+  int fd_ = -1;
+  int slot_ = -1;           // registry slot, -1 when not registered
+  std::unique_ptr<char[]> buffer_;
+  size_t capacity_ = 0, used_ = 0;
+  uint64_t written_ = 0;    // logical bytes (buffered + flushed)
+  uint64_t flushed_ = 0;    // logical bytes handed to the file or compressor
+  struct Zstd;
+  std::unique_ptr<Zstd> zstd_;
+  bool done_ = false;       // committed or failed
+};
+
+/// Writes `contents` to `path` atomically (same guarantees as AtomicOutputFile). For small
+/// outputs such as JSON reports. Throws OutputError.
+void write_file_atomic(const std::string& path, std::string_view contents);
+
+/// Installs SIGINT, SIGTERM and SIGHUP handlers that remove every live temporary file of this
+/// process and then re-raise the signal with its default action. Signals whose disposition is
+/// not the default (e.g. ignored under nohup, or a handler of the application) are left alone.
+/// Idempotent; call once early in main().
+void install_signal_cleanup();
+
+/// Removes every live temporary file of this process. Async-signal-safe (only unlinkat over a
+/// fixed registry), for applications that install their own signal handlers.
+void remove_temp_files_now() noexcept;
+
+}  // namespace streamcvd

@@ -138,7 +138,8 @@ double clustering_energy(const ItemData& items, std::span<const ClusterSums> sum
 uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                               std::vector<ClusterSums>& sums, bool constrained, double stop_fraction,
                               uint32_t max_loops, bool skip_unchanged, ClusteringReport& report,
-                              std::span<const uint8_t> initially_active) {
+                              std::span<const uint8_t> initially_active,
+                              const std::function<void(bool, uint32_t, uint64_t)>& on_loop) {
   const uint32_t V = mesh.vertex_count();
   const auto t0 = std::chrono::steady_clock::now();
   // changed_in[c]: last loop in which cluster c changed. Loops are numbered from 2, so 1 marks
@@ -214,6 +215,7 @@ uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::
     report.moves_per_loop.push_back(moves);
     report.energy_per_loop.push_back(clustering_energy(items, sums));
     report.seconds_per_loop.push_back(seconds_since(t0));
+    if (on_loop) on_loop(constrained, loops, moves);
     if (moves == 0 || double(moves) < stop_fraction * double(V)) break;
   }
   return loops;
@@ -290,12 +292,12 @@ ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items
   ClusteringReport report;
   std::vector<ClusterSums> sums = accumulate_clusters(items, labels, cluster_count);
   report.unconstrained_loops = run_clustering_loops(mesh, items, labels, sums, false, options.near_convergence,
-                                                    options.max_loops, options.skip_unchanged, report, {});
+                                                    options.max_loops, options.skip_unchanged, report, {}, options.on_loop);
   clean_clusters(mesh, items, labels, cluster_count, report);
   // Incremental sums drift: rebuild them before the constrained pass (DESIGN.md §3).
   sums = accumulate_clusters(items, labels, cluster_count);
   report.constrained_loops = run_clustering_loops(mesh, items, labels, sums, true, 0.0, options.max_loops,
-                                                  options.skip_unchanged, report, {});
+                                                  options.skip_unchanged, report, {}, options.on_loop);
   return report;
 }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -46,6 +47,8 @@ struct ClusteringOptions {
   double near_convergence = 1e-3;  ///< stop the unconstrained pass when < this fraction of items moved
   uint32_t max_loops = 2000;       ///< safety bound on loops per pass
   bool skip_unchanged = true;      ///< the modified-clusters skip of §VI-A
+  /// Called after every loop with (constrained pass?, loop number, items moved); for progress.
+  std::function<void(bool, uint32_t, uint64_t)> on_loop;
 };
 
 struct ClusteringReport {
@@ -85,7 +88,8 @@ ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items
 uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                               std::vector<ClusterSums>& sums, bool constrained, double stop_fraction,
                               uint32_t max_loops, bool skip_unchanged, ClusteringReport& report,
-                              std::span<const uint8_t> initially_active);
+                              std::span<const uint8_t> initially_active,
+                              const std::function<void(bool, uint32_t, uint64_t)>& on_loop = {});
 
 /// Cleaning step (§VI-B, Fig. 6): frees every piece of a cluster but its heaviest connected
 /// one, then gives each freed vertex to the cluster that reaches it first by BFS.

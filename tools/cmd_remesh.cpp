@@ -103,6 +103,16 @@ void add_remesh_command(CLI::App& app) {
     }
     format_from_path(args->output);  // reject an unknown output extension before the work
     install_signal_cleanup();
+    // Progress on a terminal only: batch logs stay clean.
+    if (!args->quiet && ::isatty(2)) {
+      auto start = std::make_shared<double>(now_seconds());
+      options.remesh.clustering.on_loop = [start](bool constrained, uint32_t loop, uint64_t moves) {
+        if (now_seconds() - *start < 1.0) return;
+        std::fprintf(stderr, "\r  clustering: %s pass, loop %u, %llu moves        ", constrained ? "constrained" : "first",
+                     loop, (unsigned long long)moves);
+        if (moves == 0) std::fprintf(stderr, "\n");
+      };
+    }
     double t0 = now_seconds();
     PipelineResult r = remesh_path(args->input, options);
     double t_write = now_seconds();

@@ -1,9 +1,12 @@
 #include "core/remesh.h"
 
+#include "core/bvh.h"
 #include "core/repair.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
+#include <limits>
 #include <numeric>
 
 namespace streamcvd {
@@ -20,6 +23,40 @@ std::vector<double> cluster_centroids(const ItemData& items, std::span<const Clu
     for (int k = 0; k < 3; ++k)
       z[3 * c + k] = items.origin[k] + (sums[c].weight > 0 ? sums[c].sum[k] / sums[c].weight : 0.0);
   return z;
+}
+
+// Moves each cluster's representative to the closest point of the input surface among the
+// triangles around the cluster's vertices: centroids of curved clusters lie off the surface
+// (inside convex parts), which costs approximation accuracy for nothing.
+void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels, std::vector<double>& z) {
+  const size_t K = z.size() / 3;
+  std::vector<double> best_d2(K, std::numeric_limits<double>::infinity());
+  std::vector<double> best(z.size());
+  const float* P = mesh.positions.data();
+  const uint32_t* T = mesh.triangles.data();
+  auto corner = [&](uint32_t i) { return std::array<double, 3>{P[3 * size_t(i)], P[3 * size_t(i) + 1], P[3 * size_t(i) + 2]}; };
+  for (uint32_t v = 0; v < mesh.vertex_count(); ++v) {
+    const int32_t c = labels[v];
+    if (c < 0) continue;
+    const std::array<double, 3> p = {z[3 * size_t(c)], z[3 * size_t(c) + 1], z[3 * size_t(c) + 2]};
+    for (uint32_t f : mesh.faces_of(v)) {
+      // Each face is tested once per cluster: by its smallest corner of that cluster.
+      uint32_t first = UINT32_MAX;
+      for (int k = 0; k < 3; ++k)
+        if (labels[T[3 * size_t(f) + k]] == c) first = std::min(first, T[3 * size_t(f) + k]);
+      if (first != v) continue;
+      std::array<double, 3> q = closest_point_on_triangle(p, corner(T[3 * size_t(f)]), corner(T[3 * size_t(f) + 1]),
+                                                          corner(T[3 * size_t(f) + 2]));
+      double d2 = (q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) + (q[2] - p[2]) * (q[2] - p[2]);
+      if (d2 < best_d2[c]) {
+        best_d2[c] = d2;
+        for (int k = 0; k < 3; ++k) best[3 * size_t(c) + k] = q[k];
+      }
+    }
+  }
+  for (size_t c = 0; c < K; ++c)
+    if (best_d2[c] < std::numeric_limits<double>::infinity())
+      for (int k = 0; k < 3; ++k) z[3 * c + k] = best[3 * c + k];
 }
 
 }  // namespace
@@ -52,6 +89,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   dual_options.boundary_strips = options.boundary_strips;
   DualMesh dual;
   std::vector<uint32_t> defects;
+  std::vector<uint8_t> ever_touched(K, 0);
   for (uint32_t round = 0;; ++round) {
     t = std::chrono::steady_clock::now();
     std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
@@ -75,6 +113,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
       if (dual.cluster_of_output_vertex[v] >= 0) bad_clusters.push_back(dual.cluster_of_output_vertex[v]);
     RepairRoundStats round_stats;
     const std::vector<int32_t> touched = repair_clusters(mesh, items, labels, K, bad_clusters, adjustable, round_stats);
+    for (int32_t c : touched) ever_touched[c] = 1;
     result.repaired_clusters += touched.size();
     result.repair_splits += round_stats.splits;
     result.repair_merges += round_stats.merges;
@@ -84,6 +123,34 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
     // defects do not decrease over rounds with relaxation, and do without).
     ++result.repair_rounds_used;
     result.seconds.repair += seconds_since(t);
+  }
+  // The repair leaves its split halves unrelaxed. Relax them once, constrained; keep the result
+  // only if the dual stays free of defects (relaxing may rebuild the thin-feature clusters).
+  if (defects.empty() && result.repair_rounds_used > 0) {
+    t = std::chrono::steady_clock::now();
+    std::vector<int32_t> before = labels;
+    std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
+    run_clustering_loops(mesh, items, labels, sums, true, 0.0, options.clustering.max_loops,
+                         options.clustering.skip_unchanged, result.clustering, ever_touched);
+    DualMesh relaxed = build_dual_mesh(mesh, labels, K, cluster_centroids(items, sums), dual_options, &boundary_loops);
+    if (find_manifold_defects(relaxed.mesh.view()).empty()) {
+      dual = std::move(relaxed);
+      result.final_energy = clustering_energy(items, sums);
+      result.repair_relaxed = true;
+    } else {
+      labels.swap(before);
+    }
+    result.seconds.repair += seconds_since(t);
+  }
+  // Final placement (defects do not depend on positions, so it is done once, here).
+  if (options.project_to_surface) {
+    std::vector<double> z = cluster_centroids(items, accumulate_clusters(items, labels, K));
+    project_onto_clusters(mesh, labels, z);
+    for (uint32_t v = 0; v < dual.mesh.vertex_count(); ++v) {
+      int32_t c = dual.cluster_of_output_vertex[v];
+      if (c >= 0)
+        for (int k = 0; k < 3; ++k) dual.mesh.positions[3 * size_t(v) + k] = float(z[3 * size_t(c) + k]);
+    }
   }
   if (!defects.empty()) {
     DefectRemoval removal = remove_manifold_defects(dual.mesh, dual.cluster_of_output_vertex);

@@ -18,6 +18,9 @@ struct RemeshOptions {
   uint64_t seed = 20080401;    ///< RNG seed of the initial sampling; same seed, same output
   SmallComponents small_components = SmallComponents::Keep;  ///< components too small for one cluster
   bool boundary_strips = true; ///< §VI-D triangle strips along input boundaries
+  /// Output vertex = the cluster centroid moved to the closest point of the input surface (among
+  /// the triangles around the cluster). false = the raw centroid z_i of eq. 15, as in the paper.
+  bool project_to_surface = true;
   uint32_t repair_rounds = 12; ///< split/merge rounds around dual-mesh defects before the cleanup
   ClusteringOptions clustering;
   std::vector<float> density;  ///< optional ρ per vertex (size V), empty = uniform
@@ -38,6 +41,7 @@ struct RemeshResult {
   uint32_t repair_rounds_used = 0;
   uint64_t repaired_clusters = 0;    ///< clusters touched by the repair
   uint64_t repair_splits = 0, repair_merges = 0, repair_islands = 0;
+  bool repair_relaxed = false;       ///< the repaired region was relaxed without new defects
   uint64_t defect_vertices = 0;      ///< output vertices still on a defect at the end (0 = valid)
   uint64_t defect_faces_removed = 0;   ///< faces deleted by the last-resort cleanup (holes opened)
   uint64_t defect_vertices_removed = 0;  ///< vertices deleted with them (output has fewer than N)

@@ -142,7 +142,8 @@ void add_remesh_command(CLI::App& app) {
                       {"metric", "I"},
                       {"subdivide", args->subdivide},
                       {"small_components", args->small_components},
-                      {"boundary_strips", !args->no_strips}};
+                      {"boundary_strips", !args->no_strips},
+                      {"vertex_placement", "centroid projected onto the input surface"}};
       j["seconds"] = {{"load", r.load_seconds},          {"store", r.store_seconds},
                       {"subdivide", r.subdivide_seconds}, {"items", rm.seconds.items},
                       {"sampling", rm.seconds.sampling},  {"clustering", rm.seconds.clustering},
@@ -158,7 +159,13 @@ void add_remesh_command(CLI::App& app) {
                          {"disconnected_clusters_cleaned", cr.disconnected_clusters},
                          {"final_energy", rm.final_energy},
                          {"repair_rounds", rm.repair_rounds_used},
-                         {"repaired_clusters", rm.repaired_clusters}};
+                         {"repaired_clusters", rm.repaired_clusters},
+                         {"repair_splits", rm.repair_splits},
+                         {"repair_merges", rm.repair_merges},
+                         {"repair_islands_dissolved", rm.repair_islands},
+                         {"repair_relaxed", rm.repair_relaxed},
+                         {"defect_faces_removed", rm.defect_faces_removed},
+                         {"defect_vertices_removed", rm.defect_vertices_removed}};
       j["components"] = {{"count", rm.budget.clusters_per_component.size()},
                          {"small_kept", rm.budget.small_components_kept},
                          {"dropped", rm.budget.components_dropped}};

@@ -30,17 +30,14 @@ struct MoveDelta {
 
 inline MoveDelta move_delta(double m, const float* g, const ClusterSums& from, const ClusterSums& to) {
   MoveDelta d{0.0, 0.0};
-  if (from.weight > m) {
-    double inv = 1.0 / from.weight;
-    double c[3] = {from.sum[0] * inv, from.sum[1] * inv, from.sum[2] * inv};
-    d.decrease = m * from.weight / (from.weight - m) * dist2(g, c);
-  }
-  if (to.weight > 0) {
-    double inv = 1.0 / to.weight;
-    double c[3] = {to.sum[0] * inv, to.sum[1] * inv, to.sum[2] * inv};
-    d.increase = m * to.weight / (to.weight + m) * dist2(g, c);
-  }
+  if (from.weight > m) d.decrease = m * from.weight / (from.weight - m) * dist2(g, from.centroid);
+  if (to.weight > 0) d.increase = m * to.weight / (to.weight + m) * dist2(g, to.centroid);
   return d;
+}
+
+inline void update_centroid(ClusterSums& s) {
+  double inv = s.weight > 0 ? 1.0 / s.weight : 0.0;
+  for (int c = 0; c < 3; ++c) s.centroid[c] = s.sum[c] * inv;
 }
 
 // A move is taken only when it lowers the energy by more than a relative margin, so rounding
@@ -107,6 +104,8 @@ inline void apply_move(uint32_t v, int32_t from, int32_t to, const ItemData& ite
   }
   --a.count;
   ++b.count;
+  update_centroid(a);
+  update_centroid(b);
   labels[v] = to;
 }
 
@@ -124,6 +123,7 @@ std::vector<ClusterSums> accumulate_clusters(const ItemData& items, std::span<co
     for (int c = 0; c < 3; ++c) s.sum[c] += m * items.centroid[3 * v + c];
     ++s.count;
   }
+  for (ClusterSums& s : sums) update_centroid(s);
   return sums;
 }
 

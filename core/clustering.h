@@ -64,6 +64,7 @@ struct ClusteringReport {
 struct ClusterSums {
   double weight = 0;
   double sum[3] = {0, 0, 0};
+  double centroid[3] = {0, 0, 0};  ///< sum / weight, kept up to date so a test costs no division
   uint32_t count = 0;
 };
 

@@ -171,7 +171,46 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
       uint32_t p = first_new + point_of_change[t];
       uint32_t p_next = first_new + point_of_change[(t + 1) % changes.size()];
       faces.push_back(canonical_rotation(p, b, a));
-      if (p_next != p) faces.push_back(canonical_rotation(p, p_next, b));
+      if (p_next == p) continue;
+      // Where the boundary bends inside b's stretch (corners), the chord p → p_next cuts them
+      // and the triangle (p, p_next, b) can fold over b. Douglas–Peucker on the stretch: the
+      // vertex farthest from a chord (beyond 30% of its length) becomes a strip vertex, then
+      // both halves are checked again; the strip fans from b along p → corners → p_next.
+      const size_t begin = (changes[t] + 1) % n;  // b's stretch: loop indices begin … begin+length−1
+      const size_t length = (changes[(t + 1) % changes.size()] + n - begin) % n + 1;
+      std::vector<uint32_t> chain = {p, p_next};           // output vertex ids
+      std::vector<int64_t> chain_index = {-1, int64_t(length)};  // stretch positions (ends outside)
+      for (size_t c = 0; c + 1 < chain.size();) {
+        const float* pa = &dual.mesh.positions[3 * size_t(chain[c])];
+        const float* pb = &dual.mesh.positions[3 * size_t(chain[c + 1])];
+        double chord[3] = {double(pb[0]) - pa[0], double(pb[1]) - pa[1], double(pb[2]) - pa[2]};
+        double chord2 = chord[0] * chord[0] + chord[1] * chord[1] + chord[2] * chord[2];
+        int64_t far = -1;
+        double far_d2 = 0.09 * chord2;
+        for (int64_t i = chain_index[c] + 1; i < chain_index[c + 1]; ++i) {
+          const float* q = &P[3 * size_t(loop[(begin + size_t(i)) % n])];
+          double d[3] = {double(q[0]) - pa[0], double(q[1]) - pa[1], double(q[2]) - pa[2]};
+          double along = chord2 > 0 ? (d[0] * chord[0] + d[1] * chord[1] + d[2] * chord[2]) / chord2 : 0.0;
+          along = std::clamp(along, 0.0, 1.0);
+          double r[3] = {d[0] - along * chord[0], d[1] - along * chord[1], d[2] - along * chord[2]};
+          double d2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+          if (d2 > far_d2) {
+            far_d2 = d2;
+            far = i;
+          }
+        }
+        if (far < 0) {
+          ++c;
+          continue;
+        }
+        const uint32_t q = dual.mesh.vertex_count();
+        for (int k = 0; k < 3; ++k) dual.mesh.positions.push_back(P[3 * size_t(loop[(begin + size_t(far)) % n]) + k]);
+        dual.cluster_of_output_vertex.push_back(-1);
+        ++dual.boundary_vertices_added;
+        chain.insert(chain.begin() + std::ptrdiff_t(c + 1), q);
+        chain_index.insert(chain_index.begin() + std::ptrdiff_t(c + 1), far);
+      }
+      for (size_t c = 0; c + 1 < chain.size(); ++c) faces.push_back(canonical_rotation(chain[c], chain[c + 1], b));
     }
   }
 }

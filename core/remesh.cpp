@@ -1,6 +1,7 @@
 #include "core/remesh.h"
 
 #include "core/bvh.h"
+#include "core/errors.h"
 #include "core/repair.h"
 
 #include <algorithm>
@@ -57,6 +58,23 @@ void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels
   for (size_t c = 0; c < K; ++c)
     if (best_d2[c] < std::numeric_limits<double>::infinity())
       for (int k = 0; k < 3; ++k) z[3 * c + k] = best[3 * c + k];
+}
+
+// V − E + F of a triangle soup (referenced vertices, distinct undirected edges).
+int64_t euler_characteristic(const TriangleSoupView& soup) {
+  std::vector<uint64_t> edges;
+  edges.reserve(soup.triangles.size());
+  std::vector<uint8_t> referenced(soup.vertex_count(), 0);
+  for (uint64_t f = 0; f < soup.face_count(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      uint32_t u = soup.triangles[3 * f + k], v = soup.triangles[3 * f + (k + 1) % 3];
+      referenced[u] = 1;
+      edges.push_back(uint64_t(std::min(u, v)) << 32 | std::max(u, v));
+    }
+  std::sort(edges.begin(), edges.end());
+  int64_t e = std::unique(edges.begin(), edges.end()) - edges.begin();
+  int64_t v = std::count(referenced.begin(), referenced.end(), uint8_t(1));
+  return v - e + int64_t(soup.face_count());
 }
 
 }  // namespace
@@ -159,6 +177,24 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
     defects = find_manifold_defects(dual.mesh.view());
   }
   result.defect_vertices = defects.size();
+  if (dual.mesh.face_count() == 0 && mesh.face_count() > 0)
+    throw InputError("cannot build a valid surface with N=" + std::to_string(options.vertices) +
+                     " vertices: the mesh's features are thinner than a cluster at this budget; use a larger N");
+  // Topology check for closed inputs: the output must keep the Euler characteristic (genus per
+  // component) and stay closed. A change is reported, never silent.
+  {
+    bool closed_input = true;
+    uint64_t referenced = 0;
+    for (uint32_t v = 0; v < mesh.vertex_count(); ++v) {
+      closed_input &= (mesh.vertex_flags[v] & (kVertexBoundary | kVertexNonManifold)) == 0;
+      referenced += (mesh.vertex_flags[v] & kVertexIsolated) == 0;
+    }
+    result.input_euler_characteristic =
+        int64_t(referenced) - int64_t(mesh.vertex_vertex.size() / 2) + int64_t(mesh.face_count());
+    result.output_euler_characteristic = euler_characteristic(dual.mesh.view());
+    result.topology_changed = closed_input && (result.output_euler_characteristic != result.input_euler_characteristic ||
+                                               result.defect_faces_removed > 0);
+  }
   result.duplicate_faces_removed = dual.duplicate_faces_removed;
   result.boundary_vertices_added = dual.boundary_vertices_added;
   result.holes_closed = dual.holes_closed;

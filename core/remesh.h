@@ -49,6 +49,10 @@ struct RemeshResult {
   uint64_t boundary_vertices_added = 0;
   uint64_t holes_closed = 0;
   bool clusters_connected = false;
+  int64_t input_euler_characteristic = 0, output_euler_characteristic = 0;
+  /// Closed input whose output lost or gained handles, or had holes opened by the last-resort
+  /// cleanup: the budget is too coarse for a feature. Reported, never silent.
+  bool topology_changed = false;
 };
 
 /// Remeshes `mesh` to `options.vertices` clusters (metric I, §V-A). The output vertex of each

@@ -2,7 +2,7 @@
 // vertices, isolated vertices, duplicate faces). Defects come from features thinner than a
 // cluster: a cluster enclosed by one other (an island), wrapping a tube or a hole (fewer than
 // three neighbours), or meeting a neighbour along two separate frontiers. The repair splits
-// such clusters in two and dissolves islands into their surrounding cluster, and keeps the
+// such clusters in three and dissolves islands into their surrounding cluster, and keeps the
 // cluster count N exact by merging the lightest adjacent pairs far from any defect (or
 // splitting the heaviest clusters). Constrained clustering then relaxes the touched region.
 #pragma once
@@ -34,10 +34,10 @@ struct SplitScratch {
   uint32_t next_mark = 1;
 };
 
-/// Splits the cluster holding `members` in two connected halves grown by BFS from two far-apart
-/// vertices of it; the second half takes label `new_label`. Returns false (no change) when the
-/// cluster has one vertex. O(cluster size).
-bool split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
-                   int32_t new_label, SplitScratch& scratch);
+/// Splits the cluster holding `members` into up to new_labels.size() + 1 connected parts grown
+/// by BFS from farthest-point seeds; part k > 0 takes new_labels[k − 1]. Returns the number of
+/// new labels used (0: the cluster could not be split). O(cluster size · parts).
+uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
+                       std::span<const int32_t> new_labels, SplitScratch& scratch);
 
 }  // namespace streamcvd

@@ -1,6 +1,7 @@
 // Component budget and initial sampling (paper §VI-G).
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <random>
 
@@ -146,11 +147,20 @@ std::vector<int32_t> initial_sampling(const MeshView& mesh, const ItemData& item
     if (budget.clusters_per_component[c] > 0) target[c] = component_weight[c] / budget.clusters_per_component[c];
   std::vector<uint32_t> remaining = budget.clusters_per_component;
 
-  // One seeded random permutation of all vertices gives every component its random free seeds.
+  // Seeds are drawn in proportion to weight (a weighted random order: key −ln(u)/M_j, the
+  // exponential race), so that a region gets clusters by its area·density, not by how finely
+  // it happens to be sampled (paper Fig. 5). Weightless vertices come last.
   std::vector<uint32_t> order(V);
   std::iota(order.begin(), order.end(), 0u);
-  std::mt19937_64 rng(seed);
-  for (uint32_t i = V; i > 1; --i) std::swap(order[i - 1], order[rng() % i]);
+  {
+    std::mt19937_64 rng(seed);
+    std::vector<double> key(V);
+    for (uint32_t v = 0; v < V; ++v) {
+      double u = (double(rng() >> 11) + 0.5) * 0x1.0p-53;  // uniform in (0, 1)
+      key[v] = items.weight[v] > 0 ? -std::log(u) / items.weight[v] : std::numeric_limits<double>::infinity();
+    }
+    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key[a] != key[b] ? key[a] < key[b] : a < b; });
+  }
 
   int32_t next_label = 0;
   std::vector<uint32_t> queue;

@@ -59,7 +59,8 @@ nlohmann::json guarantee_checks(const PipelineResult& r, uint32_t requested, boo
   else if (closed_in) j["euler_characteristic_preserved"] = genus_ok;
   j["manifold_ok"] = manifold_ok;
   j["closed_ok"] = closed_ok;
-  all_ok = manifold_ok && closed_ok && rm.defect_vertices == 0;
+  j["topology_changed"] = rm.topology_changed;
+  all_ok = manifold_ok && closed_ok && genus_ok && !rm.topology_changed && rm.defect_vertices == 0;
   j["all_ok"] = all_ok;
   return j;
 }

@@ -30,7 +30,9 @@ struct ComponentBudget {
 
 /// Splits N clusters over the vertex-connected components in proportion to their weight
 /// (largest remainder). A component too small for its share gets min(4 closed / 3 open, its
-/// vertex count) clusters (Keep) or none (Drop); no component gets more clusters than vertices.
+/// vertex count) clusters, or one per vertex when it has at most 16 (Keep), or none (Drop);
+/// kept small components take at most a fifth of N (the lightest are dropped beyond it, with a
+/// note). No component gets more clusters than vertices.
 /// O(V + E). Deterministic.
 ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& items, uint32_t clusters,
                                       SmallComponents small_components);

@@ -13,6 +13,7 @@ namespace {
 
 constexpr uint32_t kNoComponent = UINT32_MAX;
 constexpr uint32_t kVerbatimVertices = 16;
+constexpr double kSmallComponentShare = 0.2;
 
 // Vertex-connected components by BFS over the CSR graph; isolated vertices get kNoComponent.
 uint32_t label_components(const MeshView& mesh, std::vector<uint32_t>& component) {
@@ -111,6 +112,34 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
     if (small[c] && small_components == SmallComponents::Keep && b.vertices_per_component[c] <= kVerbatimVertices)
       lo[c] = hi[c] = b.vertices_per_component[c];
   }
+  // Kept small components may take at most a fifth of the budget (a scan with hundreds of
+  // floating specks at a small N must still give the main surface its share): the heaviest are
+  // kept within that cap, the others dropped and counted.
+  if (small_components == SmallComponents::Keep) {
+    std::vector<uint32_t> smalls;
+    uint64_t needed = 0;
+    for (uint32_t c = 0; c < C; ++c)
+      if (small[c]) {
+        smalls.push_back(c);
+        needed += lo[c];
+      }
+    const uint64_t cap = uint64_t(double(clusters) * kSmallComponentShare);
+    if (needed > cap) {
+      std::stable_sort(smalls.begin(), smalls.end(), [&](uint32_t x, uint32_t y) { return weight[x] > weight[y]; });
+      uint64_t used = 0;
+      uint32_t dropped = 0;
+      for (uint32_t c : smalls) {
+        if (used + lo[c] <= cap) {
+          used += lo[c];
+        } else {
+          lo[c] = hi[c] = 0;
+          ++dropped;
+        }
+      }
+      b.note = std::to_string(dropped) + " of " + std::to_string(smalls.size()) +
+               " small components dropped: keeping them all would take more than a fifth of N";
+    }
+  }
   // Small components take their minimum first; the large ones share what is left.
   b.clusters_per_component = proportional_split(weight, clusters, lo, hi);
   for (uint32_t c = 0; c < C; ++c) {
@@ -120,7 +149,7 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
       else ++b.small_components_kept;
     }
   }
-  if (b.total_clusters != clusters) {
+  if (b.total_clusters != clusters && b.note.empty()) {
     uint64_t clusterable = 0;
     for (uint32_t c = 0; c < C; ++c) clusterable += b.vertices_per_component[c];
     if (b.total_clusters > clusters)

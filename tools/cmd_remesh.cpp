@@ -22,7 +22,7 @@ struct RemeshArgs {
   std::string input, output, report, subdivide = "auto", small_components = "keep";
   uint32_t vertices = 10000;
   uint64_t seed = RemeshOptions{}.seed;
-  bool no_strips = false, ascii = false, quiet = false;
+  bool no_strips = false, no_project = false, ascii = false, quiet = false;
 };
 
 // The output guarantees of a run (issue: closed manifold in → closed, oriented manifold out).
@@ -83,6 +83,8 @@ void add_remesh_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::IsMember({"keep", "drop"}));
   cmd->add_flag("--no-boundary-strips", args->no_strips, "Do not add the triangle strips along input boundaries (§VI-D)");
+  cmd->add_flag("--no-project", args->no_project,
+                "Output vertices at the raw cluster centroids (eq. 15) instead of projected onto the input surface");
   cmd->add_flag("--ascii", args->ascii, "Write ascii PLY");
   cmd->add_flag("-q,--quiet", args->quiet, "No summary on stderr");
   cmd->callback([args] {
@@ -90,6 +92,7 @@ void add_remesh_command(CLI::App& app) {
     options.remesh.vertices = args->vertices;
     options.remesh.seed = args->seed;
     options.remesh.boundary_strips = !args->no_strips;
+    options.remesh.project_to_surface = !args->no_project;
     options.remesh.small_components = args->small_components == "drop" ? SmallComponents::Drop : SmallComponents::Keep;
     if (args->subdivide == "auto") options.subdivide = -1;
     else if (args->subdivide == "none") options.subdivide = 0;
@@ -144,7 +147,7 @@ void add_remesh_command(CLI::App& app) {
                       {"subdivide", args->subdivide},
                       {"small_components", args->small_components},
                       {"boundary_strips", !args->no_strips},
-                      {"vertex_placement", "centroid projected onto the input surface"}};
+                      {"vertex_placement", args->no_project ? "centroid" : "centroid projected onto the input surface"}};
       j["seconds"] = {{"load", r.load_seconds},          {"store", r.store_seconds},
                       {"subdivide", r.subdivide_seconds}, {"items", rm.seconds.items},
                       {"sampling", rm.seconds.sampling},  {"clustering", rm.seconds.clustering},

@@ -1,5 +1,6 @@
 // `streamcvd remesh`: the main job. Reads a mesh or store, remeshes it to N vertices, writes the
 // output atomically, checks the output guarantees and writes a JSON report.
+#include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -21,6 +22,7 @@ namespace {
 struct RemeshArgs {
   std::string input, output, report, subdivide = "auto", small_components = "keep";
   uint32_t vertices = 10000;
+  uint32_t threads = 0;
   uint64_t seed = RemeshOptions{}.seed;
   bool no_strips = false, no_project = false, ascii = false, quiet = false;
 };
@@ -87,6 +89,10 @@ void add_remesh_command(CLI::App& app) {
                 "Output vertices at the raw cluster centroids (eq. 15) instead of projected onto the input surface");
   cmd->add_flag("--ascii", args->ascii, "Write ascii PLY");
   cmd->add_flag("-q,--quiet", args->quiet, "No summary on stderr");
+  cmd->add_option("--threads", args->threads,
+                  "Worker threads for the parallel stages (store build, items, sorts); default all cores. "
+                  "The clustering itself is single-threaded in this version")
+      ->check(CLI::Range(1u, 4096u));
   cmd->callback([args] {
     PipelineOptions options;
     options.remesh.vertices = args->vertices;
@@ -107,6 +113,9 @@ void add_remesh_command(CLI::App& app) {
     }
     format_from_path(args->output);  // reject an unknown output extension before the work
     install_signal_cleanup();
+    std::unique_ptr<tbb::global_control> thread_limit;
+    if (args->threads > 0)
+      thread_limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, args->threads);
     // Progress on a terminal only: batch logs stay clean.
     if (!args->quiet && ::isatty(2)) {
       auto start = std::make_shared<double>(now_seconds());
@@ -142,6 +151,7 @@ void add_remesh_command(CLI::App& app) {
                     {"remeshed_vertices", r.remeshed_vertices},
                     {"remeshed_faces", r.remeshed_faces}};
       j["options"] = {{"vertices", args->vertices},
+                      {"threads", args->threads},
                       {"seed", args->seed},
                       {"metric", "I"},
                       {"subdivide", args->subdivide},

@@ -2,6 +2,7 @@
 
 #include <chrono>
 
+#include "core/errors.h"
 #include "core/subdivide.h"
 #include "streaming/mesh_io.h"
 
@@ -44,7 +45,7 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
     for (int level = 0; level < result.subdivision_levels; ++level) soup = subdivide_linear(soup.view());
     result.subdivide_seconds = seconds_since(t);
     t = std::chrono::steady_clock::now();
-    subdivided = MeshStore::build(soup.view());
+    subdivided = MeshStore::build(std::move(soup));
     result.store_seconds += seconds_since(t);
     view = subdivided.view();
   }
@@ -53,6 +54,12 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   RemeshOptions remesh_options = options.remesh;
   if (!remesh_options.density.empty() && result.subdivision_levels > 0) remesh_options.density.clear();
   result.remesh = remesh(view, remesh_options);
+  if (result.remesh.mesh.face_count() == 0)
+    // An empty file is no answer: every component was dropped, or is thinner than a cluster
+    // everywhere (a needle), or has no area.
+    throw InputError("remeshing left no triangle (" + std::to_string(result.remesh.clusters) +
+                     " clusters; components too small or too thin for the budget of " +
+                     std::to_string(options.remesh.vertices) + " vertices)");
   result.input = summarize_input(store.view(), result.remesh.budget.clusters_per_component.size());
   result.output_topology = compute_topology_stats(result.remesh.mesh.view());
   result.output_quality = compute_quality(result.remesh.mesh.view());
@@ -70,10 +77,15 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
     MeshBuffers soup = read_mesh(input);
     load_seconds = seconds_since(t);
     t = std::chrono::steady_clock::now();
-    store = MeshStore::build(soup.view());
+    store = MeshStore::build(std::move(soup));
     store_seconds = seconds_since(t);
   }
-  PipelineResult result = remesh_store(store, options);
+  PipelineResult result;
+  try {
+    result = remesh_store(store, options);
+  } catch (const InputError& e) {
+    throw InputError(error_at(input, e.what()));  // name the file, as every CLI error does
+  }
   result.load_seconds = load_seconds;
   result.store_seconds += store_seconds;
   return result;

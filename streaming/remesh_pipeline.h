@@ -36,10 +36,11 @@ struct PipelineResult {
 /// Summary figures of a store view in O(V) (Euler characteristic from CSR degrees).
 InputSummary summarize_input(const MeshView& mesh, uint64_t components);
 
-/// Remeshes an in-RAM or mapped store (subdividing first when asked or needed).
+/// Remeshes an in-RAM or mapped store (subdividing first when asked or needed). Throws
+/// InputError when the result has no triangle (all components dropped, or thinner than a cluster).
 PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& options);
 
-/// Loads `input` (mesh file or store directory) and remeshes it. Throws InputError.
+/// Loads `input` (mesh file or store directory) and remeshes it. Throws InputError naming `input`.
 PipelineResult remesh_path(const std::string& input, const PipelineOptions& options);
 
 }  // namespace streamcvd

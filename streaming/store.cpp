@@ -326,6 +326,15 @@ MeshStore::MeshStore(MeshStore&&) noexcept = default;
 MeshStore& MeshStore::operator=(MeshStore&&) noexcept = default;
 
 MeshStore MeshStore::build(const TriangleSoupView& soup, const StoreBuildOptions& options) {
+  return build_from(soup, options, nullptr);
+}
+
+MeshStore MeshStore::build(MeshBuffers&& soup, const StoreBuildOptions& options) {
+  MeshBuffers owned = std::move(soup);
+  return build_from(owned.view(), options, &owned);
+}
+
+MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOptions& options, MeshBuffers* consumed) {
   check_soup(soup);
   if (options.faces_per_chunk == 0) throw InputError("store build: faces_per_chunk must be positive");
   const uint32_t v_count = soup.vertex_count();
@@ -355,6 +364,7 @@ MeshStore MeshStore::build(const TriangleSoupView& soup, const StoreBuildOptions
     // 2. Faces remapped and sorted by owner.
     sort_faces_by_owner(soup.triangles, new_of_old, owned, s.triangles);
   }
+  if (consumed) *consumed = MeshBuffers{};  // `soup` views it: not used past this point
 
   // 3. Adjacency and flags.
   build_vertex_face_adjacency(s.triangles, v_count, s.vf_offsets, s.vertex_face);
@@ -411,11 +421,12 @@ MeshStore MeshStore::open(const std::string& directory) {
   // Header.
   {
     const std::string path = directory + "/" + kHeaderFile;
-    int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);  // a FIFO must not block
     if (fd < 0) fail(kHeaderFile, std::string("cannot open: ") + std::strerror(errno));
     struct stat st {};
-    ssize_t got =
-        ::fstat(fd, &st) == 0 && st.st_size == sizeof(StoreHeader) ? ::read(fd, &s.header, sizeof(StoreHeader)) : -1;
+    ssize_t got = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size == sizeof(StoreHeader)
+                      ? ::read(fd, &s.header, sizeof(StoreHeader))
+                      : -1;
     ::close(fd);
     if (got != ssize_t(sizeof(StoreHeader)))
       fail(kHeaderFile,
@@ -439,12 +450,14 @@ MeshStore MeshStore::open(const std::string& directory) {
   std::vector<std::span<const std::byte>> arrays;
   for (const ArrayFile& file : files) {
     const std::string path = directory + "/" + file.name;
-    int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
     if (fd < 0) fail(file.name, std::string("cannot open: ") + std::strerror(errno));
     struct stat st {};
-    if (::fstat(fd, &st) != 0) {
+    const bool stat_ok = ::fstat(fd, &st) == 0;
+    if (!stat_ok || !S_ISREG(st.st_mode)) {
+      const int e = errno;
       ::close(fd);
-      fail(file.name, std::string("cannot stat: ") + std::strerror(errno));
+      fail(file.name, stat_ok ? std::string("not a regular file") : std::string("cannot stat: ") + std::strerror(e));
     }
     const uint64_t size = uint64_t(st.st_size);
     if (file.count > size / file.element || size != file.count * file.element) {
@@ -524,7 +537,7 @@ uint64_t MeshStore::size_bytes() const {
 bool is_store_directory(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::is_directory(path, ec)) return false;
-  int fd = ::open((path + "/" + kHeaderFile).c_str(), O_RDONLY | O_CLOEXEC);
+  int fd = ::open((path + "/" + kHeaderFile).c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) return false;
   char magic[sizeof StoreHeader{}.magic];
   const bool ok = ::read(fd, magic, sizeof magic) == ssize_t(sizeof magic) &&

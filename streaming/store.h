@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "core/mesh_buffers.h"
 #include "core/mesh_view.h"
 
 namespace streamcvd {
@@ -57,6 +58,9 @@ class MeshStore {
   /// beyond the soup ≈ 1.0-1.1× the store size (temporaries are freed before the adjacency is
   /// built). Throws InputError for indices ≥ V, V or F ≥ 2^32, or faces_per_chunk == 0.
   static MeshStore build(const TriangleSoupView& soup, const StoreBuildOptions& options = {});
+  /// Same, consuming `soup`: its arrays are freed as soon as they have been copied into the
+  /// store, which lowers the peak memory of ingesting a file by the soup's size.
+  static MeshStore build(MeshBuffers&& soup, const StoreBuildOptions& options = {});
   /// Maps a store directory written by write(). Throws InputError "<dir>/<file>: <problem>"
   /// (missing file, bad magic/version, sizes that disagree with the header). Also validates,
   /// in one parallel O(V + F) pass over the index arrays, everything that would make an
@@ -77,6 +81,8 @@ class MeshStore {
   uint64_t size_bytes() const;
 
  private:
+  static MeshStore build_from(const TriangleSoupView& soup, const StoreBuildOptions& options, MeshBuffers* consumed);
+
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

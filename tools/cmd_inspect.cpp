@@ -174,8 +174,7 @@ void add_ingest_command(CLI::App& app) {
     double t_read = now_seconds();
     StoreBuildOptions options;
     options.faces_per_chunk = *faces_per_chunk;
-    MeshStore store = MeshStore::build(soup.view(), options);
-    soup = MeshBuffers{};
+    MeshStore store = MeshStore::build(std::move(soup), options);
     double t_build = now_seconds();
     store.write(*dir);
     double t_write = now_seconds();

@@ -18,6 +18,7 @@ constexpr size_t kVertexGrain = 2048;
 // Valences are small (~6): insertion sort beats std::sort there; big fans fall back to it.
 template <typename T>
 void sort_small(T* first, T* last) {
+  if (last - first < 2) return;  // also keeps `first + 1` off a null pointer (no faces at all)
   if (last - first > 32) {
     std::sort(first, last);
     return;

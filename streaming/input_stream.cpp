@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <new>
 
 #include "core/errors.h"
 
@@ -28,32 +29,51 @@ struct InputStream::Zstd {
 };
 
 InputStream::InputStream(std::string path) : path_(std::move(path)) {
-  struct stat st {};
-  if (::stat(path_.c_str(), &st) != 0) throw InputError(error_at(path_, std::strerror(errno)));
-  if (S_ISDIR(st.st_mode)) throw InputError(error_at(path_, "is a directory, not a mesh file"));
-  fd_ = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
+  // O_NONBLOCK: opening a FIFO that has no writer would otherwise block forever. The type is
+  // then checked on the open descriptor (no window for the path to change in between).
+  fd_ = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd_ < 0) throw InputError(error_at(path_, std::strerror(errno)));
+  struct stat st {};
+  const char* problem = nullptr;
+  if (::fstat(fd_, &st) != 0) problem = std::strerror(errno);
+  else if (S_ISDIR(st.st_mode)) problem = "is a directory, not a mesh file";
+  else if (!S_ISREG(st.st_mode) && !S_ISFIFO(st.st_mode)) problem = "not a regular file or pipe";
+  // Blocking reads from here on (a pipe's writer may be slower than us). A FIFO without a
+  // writer then reads as end of file at once, hence "file is empty" below.
+  else if (::fcntl(fd_, F_SETFL, ::fcntl(fd_, F_GETFL) & ~O_NONBLOCK) != 0) problem = std::strerror(errno);
+  if (problem) {
+    ::close(fd_);
+    fd_ = -1;
+    throw InputError(error_at(path_, problem));
+  }
   file_size_ = S_ISREG(st.st_mode) ? uint64_t(st.st_size) : 0;
 #ifdef POSIX_FADV_SEQUENTIAL
   ::posix_fadvise(fd_, 0, 0, POSIX_FADV_SEQUENTIAL);
 #endif
-  buffer_.resize(kBufferSize);
-  // Sniff the zstd magic from the first raw bytes, then keep them as input of the chosen path.
-  size_t got = read_source(buffer_.data(), 4);
-  if (got == 0) {
+  try {  // the destructor does not run when the constructor throws: close the file here
+    // A small file gets a small buffer (a mesh reader opens many of them in tests and fuzzing);
+    // refill() grows it when a zstd frame inflates or a request needs more.
+    buffer_.resize(file_size_ > 0 ? size_t(std::clamp<uint64_t>(file_size_ + 1, 4096, kBufferSize)) : kBufferSize);
+    // Sniff the zstd magic from the first raw bytes, then keep them as input of the chosen path.
+    size_t got = read_source(buffer_.data(), 4);
+    if (got == 0)
+      throw InputError(error_at(path_, S_ISFIFO(st.st_mode) ? "pipe is empty (no writer)" : "file is empty"));
+    if (got == 4 && std::memcmp(buffer_.data(), kZstdMagic, 4) == 0) {
+      buffer_.resize(size_t(std::clamp<uint64_t>(16 * file_size_, 1 << 16, kBufferSize)));
+      zstd_ = std::make_unique<Zstd>();
+      zstd_->ctx = ZSTD_createDCtx();
+      if (!zstd_->ctx) throw std::bad_alloc();
+      zstd_->in.resize(ZSTD_DStreamInSize());
+      std::memcpy(zstd_->in.data(), kZstdMagic, 4);
+      zstd_->input = {zstd_->in.data(), 4, 0};
+      end_ = 0;
+    } else {
+      end_ = got;
+    }
+  } catch (...) {
     ::close(fd_);
     fd_ = -1;
-    throw InputError(error_at(path_, "file is empty"));
-  }
-  if (got == 4 && std::memcmp(buffer_.data(), kZstdMagic, 4) == 0) {
-    zstd_ = std::make_unique<Zstd>();
-    zstd_->ctx = ZSTD_createDCtx();
-    zstd_->in.resize(ZSTD_DStreamInSize());
-    std::memcpy(zstd_->in.data(), kZstdMagic, 4);
-    zstd_->input = {zstd_->in.data(), 4, 0};
-    end_ = 0;
-  } else {
-    end_ = got;
+    throw;
   }
 }
 
@@ -110,9 +130,16 @@ size_t InputStream::refill(size_t want) {
     std::memmove(buffer_.data(), buffer_.data() + pos_, have);
     pos_ = 0;
     end_ = have;
-    if (want > buffer_.size()) buffer_.resize(std::max(want, buffer_.size() * 2));
+    // Grow for a request larger than the buffer, but no further than the data can go: a 1 MiB
+    // request near the end of a small file needs only what is left (+1 to see the end).
+    size_t need = want;
+    if (!zstd_ && file_size_ > 0)
+      need = size_t(std::min<uint64_t>(want, have + (file_size_ > file_read_ ? file_size_ - file_read_ : 0) + 1));
+    if (need > buffer_.size()) buffer_.resize(std::max(need, std::min(buffer_.size() * 2, kBufferSize)));
   }
   while (end_ - pos_ < want && !eof_) {
+    // Full but more wanted: a zstd frame inflating, or a file that grew since it was opened.
+    if (end_ == buffer_.size()) buffer_.resize(buffer_.size() * 2);
     size_t got = read_source(buffer_.data() + end_, buffer_.size() - end_);
     if (got == 0) eof_ = true;
     end_ += got;
@@ -166,6 +193,10 @@ bool InputStream::next_line(std::string_view& line) {
       return true;
     }
     size_t have = end_ - pos_;
+    if (have > kMaxLine) {  // also for a last line without terminator
+      ++line_;
+      fail("line longer than 256 MiB");
+    }
     if (eof_) {
       if (have == 0) return false;
       line = std::string_view(buffer_.data() + pos_, have);
@@ -173,12 +204,9 @@ bool InputStream::next_line(std::string_view& line) {
       ++line_;
       return true;
     }
-    if (have >= kMaxLine) {
-      ++line_;
-      fail("line longer than 256 MiB");
-    }
     size_t scanned = have;
-    refill(std::max(have * 2, have + (size_t(1) << 16)));
+    // Never ask for more than one byte past the limit: the buffer stays under ~256 MiB.
+    refill(std::min(std::max(have * 2, have + (size_t(1) << 16)), kMaxLine + 1));
     scan_from = pos_ + scanned;
   }
 }

@@ -15,8 +15,9 @@ namespace streamcvd {
 
 class InputStream {
  public:
-  /// Opens `path`. Throws InputError naming the file when it is missing, unreadable, a
-  /// directory, or empty.
+  /// Opens `path` (a regular file or a pipe). Throws InputError naming the file when it is
+  /// missing, unreadable, a directory, a device or socket, or empty (a FIFO without a writer
+  /// reads as empty: opening never blocks).
   explicit InputStream(std::string path);
   ~InputStream();
   InputStream(const InputStream&) = delete;

@@ -4,7 +4,8 @@
 set -euo pipefail
 packages=(build-essential cmake g++ pkg-config git
   libeigen3-dev libtbb-dev libzstd-dev zstd libopenmesh-dev libcli11-dev
-  libfast-float-dev nlohmann-json3-dev libgtest-dev libpng-dev)
+  libfast-float-dev nlohmann-json3-dev libgtest-dev libpng-dev
+  clang-14 libclang-rt-14-dev)  # clang: the libFuzzer targets (fuzz/)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

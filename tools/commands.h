@@ -15,6 +15,10 @@ void add_quality_command(CLI::App& app);
 void add_ingest_command(CLI::App& app);
 void add_remesh_command(CLI::App& app);
 void add_generate_command(CLI::App& app);
+void add_distance_command(CLI::App& app);  // cmd_measure.cpp
+void add_render_command(CLI::App& app);    // cmd_measure.cpp
+void add_bench_command(CLI::App& app);     // cmd_bench.cpp
+void add_curvature_command(CLI::App& app); // cmd_curvature.cpp
 
 /// Prints `j` indented to stdout.
 void print_json(const nlohmann::json& j);

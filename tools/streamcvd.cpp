@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include "core/errors.h"
+#include "streaming/output_file.h"
 #include "tools/commands.h"
 
 namespace streamcvd::cli {
@@ -38,6 +39,13 @@ int main(int argc, char** argv) {
   cli::add_ingest_command(app);
   cli::add_remesh_command(app);
   cli::add_generate_command(app);
+  cli::add_distance_command(app);
+  cli::add_render_command(app);
+  cli::add_bench_command(app);
+  cli::add_curvature_command(app);
+  // Every subcommand that writes goes through AtomicOutputFile: on SIGINT/SIGTERM/SIGHUP its
+  // temporary files must be removed whichever command runs (not only remesh).
+  install_signal_cleanup();
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

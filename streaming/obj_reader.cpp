@@ -12,15 +12,18 @@
 
 #include "core/errors.h"
 #include "streaming/input_stream.h"
+#include "streaming/text_tokens.h"
 #include "streaming/mesh_io.h"
 
 namespace streamcvd {
 
 namespace {
 
-constexpr uint64_t kMaxVertices = std::numeric_limits<uint32_t>::max();
+using text::is_space;
+using text::parse_coordinate;
+using text::quoted;
 
-inline bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+constexpr uint64_t kMaxVertices = std::numeric_limits<uint32_t>::max();
 
 /// Next whitespace-separated token of [p, e), advancing p; empty at the end of the line or at
 /// a '#' comment.
@@ -33,26 +36,6 @@ inline std::string_view next_token(const char*& p, const char* e) {
   const char* s = p;
   while (p < e && !is_space(*p)) ++p;
   return {s, size_t(p - s)};
-}
-
-std::string quoted(std::string_view tok) {
-  constexpr size_t kShown = 40;  // keep error messages one short line
-  std::string s(tok.substr(0, kShown));
-  for (char& c : s)
-    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
-  return "'" + s + (tok.size() > kShown ? "...'" : "'");
-}
-
-/// One coordinate: the whole token must be a finite number (fast_float rejects a leading '+').
-float parse_coordinate(InputStream& in, std::string_view tok) {
-  const char* p = tok.data();
-  const char* e = p + tok.size();
-  if (p < e && *p == '+' && p + 1 < e && p[1] != '-') ++p;
-  float v = 0;
-  auto r = fast_float::from_chars(p, e, v);
-  if (r.ec != std::errc() || r.ptr != e) in.fail("bad number " + quoted(tok));
-  if (!std::isfinite(v)) in.fail("coordinate is not finite: " + quoted(tok));
-  return v;
 }
 
 /// Where a positive index points past the vertices defined so far; checked at the end, when the

@@ -15,21 +15,16 @@
 
 #include "core/errors.h"
 #include "streaming/input_stream.h"
+#include "streaming/text_tokens.h"
 #include "streaming/mesh_io.h"
 
 namespace streamcvd {
 
 namespace {
 
-inline bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
-
-std::string quoted(std::string_view tok) {
-  constexpr size_t kShown = 40;  // keep error messages one short line
-  std::string s(tok.substr(0, kShown));
-  for (char& c : s)
-    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
-  return "'" + s + (tok.size() > kShown ? "...'" : "'");
-}
+using text::is_space;
+using text::parse_coordinate;
+using text::quoted;
 
 /// Whitespace-separated tokens over the stream's lines, '#' starting a comment anywhere.
 class Tokens {
@@ -72,17 +67,6 @@ uint64_t parse_count(InputStream& in, std::string_view tok, const char* what) {
   auto r = std::from_chars(tok.data(), tok.data() + tok.size(), v);
   if (r.ec != std::errc() || r.ptr != tok.data() + tok.size())
     in.fail(std::string("bad ") + what + " " + quoted(tok));
-  return v;
-}
-
-float parse_coordinate(InputStream& in, std::string_view tok) {
-  const char* p = tok.data();
-  const char* e = p + tok.size();
-  if (p < e && *p == '+' && p + 1 < e && p[1] != '-') ++p;  // fast_float rejects a leading '+'
-  float v = 0;
-  auto r = fast_float::from_chars(p, e, v);
-  if (r.ec != std::errc() || r.ptr != e) in.fail("bad number " + quoted(tok));
-  if (!std::isfinite(v)) in.fail("coordinate is not finite: " + quoted(tok));
   return v;
 }
 

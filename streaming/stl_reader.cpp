@@ -16,11 +16,15 @@
 
 #include "core/errors.h"
 #include "streaming/input_stream.h"
+#include "streaming/text_tokens.h"
 #include "streaming/mesh_io.h"
 
 namespace streamcvd {
 
 namespace {
+
+using text::parse_coordinate;
+using text::quoted;
 
 constexpr uint64_t kMaxVertices = std::numeric_limits<uint32_t>::max();
 constexpr size_t kHeaderBytes = 84;  // 80-byte header + uint32 facet count
@@ -91,6 +95,7 @@ class VertexMerger {
   uint64_t mask_ = 0;
 };
 
+// Ascii STL is read token by token across lines, so a line break is blank here too.
 inline bool is_space(char c) {
   return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f';
 }
@@ -101,14 +106,6 @@ inline bool is_keyword(std::string_view tok, std::string_view lower) {
   for (size_t i = 0; i < tok.size(); ++i)
     if ((tok[i] | 0x20) != lower[i]) return false;
   return true;
-}
-
-std::string quoted(std::string_view tok) {
-  constexpr size_t kShown = 40;  // keep error messages one short line
-  std::string s(tok.substr(0, kShown));
-  for (char& c : s)
-    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
-  return "'" + s + (tok.size() > kShown ? "...'" : "'");
 }
 
 /// Binary unless the data starts with "solid" and reads as text: many binary writers also put
@@ -223,17 +220,6 @@ class Tokens {
   const char* p_ = nullptr;
   const char* e_ = nullptr;
 };
-
-float parse_coordinate(InputStream& in, std::string_view tok) {
-  const char* p = tok.data();
-  const char* e = p + tok.size();
-  if (p < e && *p == '+' && p + 1 < e && p[1] != '-') ++p;  // fast_float rejects a leading '+'
-  float v = 0;
-  auto r = fast_float::from_chars(p, e, v);
-  if (r.ec != std::errc() || r.ptr != e) in.fail("bad number " + quoted(tok));
-  if (!std::isfinite(v)) in.fail("coordinate is not finite: " + quoted(tok));
-  return v;
-}
 
 /// Token grammar, tolerant to any whitespace and to several solids:
 ///   solid [name] { facet [normal nx ny nz] outer loop {vertex x y z}≥3 endloop endfacet } endsolid [name]

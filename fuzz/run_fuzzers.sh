@@ -28,8 +28,14 @@ run_one() {
   mkdir -p "$corpus" "$artifacts"
   # -timeout: one input taking over 10 s is a hang; -rss_limit_mb: over 2 GiB is an allocation
   # sized from a header.
-  if "$build/fuzz/$t" "$corpus" "$seeds/$kind" -max_total_time="$seconds" -max_len=16384 -timeout=10 \
-      -rss_limit_mb=2048 -artifact_prefix="$artifacts/" -print_final_stats=1 >"$build/fuzz-$t.log" 2>&1; then
+  local pid rc=0
+  "$build/fuzz/$t" "$corpus" "$seeds/$kind" -max_total_time="$seconds" -max_len=16384 -timeout=10 \
+    -rss_limit_mb=2048 -artifact_prefix="$artifacts/" -print_final_stats=1 >"$build/fuzz-$t.log" 2>&1 &
+  pid=$!
+  wait "$pid" || rc=$?
+  # libFuzzer may leave without running destructors: remove the harness's scratch folder.
+  rm -rf "/dev/shm/streamcvd_fuzz_$pid" "/tmp/streamcvd_fuzz_$pid"
+  if [ "$rc" -eq 0 ]; then
     echo "$t: ok, $(grep -m1 -o 'number_of_executed_units: [0-9]*' "$build/fuzz-$t.log" | grep -o '[0-9]*$') executions"
   else
     echo "$t: FAILED (see $build/fuzz-$t.log and $artifacts/)"

@@ -380,7 +380,9 @@ QualityStats compute_quality(const TriangleSoupView& mesh) {
   const uint64_t nf = mesh.face_count();
   const double eps = zero_area(bounding_box(mesh.positions));
 
-  const QualityAccumulator acc = tbb::parallel_reduce(
+  // Deterministic reduce: fixed split/join tree, so the double sums (and Qav) are bit-identical
+  // from run to run and for any thread count (benchmarks compare reruns exactly).
+  const QualityAccumulator acc = tbb::parallel_deterministic_reduce(
       tbb::blocked_range<uint64_t>(0, nf, 1 << 13), QualityAccumulator{},
       [&](const tbb::blocked_range<uint64_t>& r, QualityAccumulator a) {
         for (uint64_t f = r.begin(); f != r.end(); ++f) {

@@ -139,7 +139,7 @@ TEST(Bench, TinySuiteRunsEndToEndAndRepeats) {
     "defaults": {"seed": 11, "threads": 1, "metric": "I", "distance_samples": 20000, "render_size": "160x120"},
     "cases": [{"name": "sphere_200", "mesh": "meshes/sphere.ply", "N": 200,
                "algorithms": ["cvd", "openmesh-qem"]},
-              {"name": "absent", "mesh": "meshes/absent.ply", "N": 50, "algorithms": ["cvd"]}]})";
+              {"name": "absent", "mesh": "meshes/absent.ply", "N": 50, "algorithm": "cvd"}]})";
   const json first = run_tiny_suite(suite, dir / "out1");
   ASSERT_TRUE(first.contains("records"));
   const json& records = first["records"];

@@ -188,7 +188,7 @@ std::string energy_svg(const json& records) {
     svg += text_at(f.px(x), f.top + f.h + 17, fmt("%g", std::pow(10.0, x)), "middle", 11);
   }
   svg += text_at(f.left + f.w / 2, f.top + f.h + 38, "time since the first loop started (s, log scale)");
-  const double ratios[] = {1, 1.01, 1.02, 1.05, 1.1, 1.2, 1.5, 2, 3, 5, 10, 20, 50, 100, 1000, 1e4};
+  const double ratios[] = {0.5, 0.8, 0.9, 0.95, 0.98, 0.99, 1, 1.01, 1.02, 1.05, 1.1, 1.2, 1.5, 2, 3, 5, 10, 20, 50, 100, 1000, 1e4};
   for (double r : ratios) {
     const double y = std::log10(r);
     if (y < f.y0 || y > f.y1) continue;

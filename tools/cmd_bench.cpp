@@ -7,10 +7,11 @@
 //                                 "algorithms": ["cvd", "openmesh-qem"], "distance_samples": 1000000,
 //                                 "render_size": "640x640", "view": [30, 20], "timeout_seconds": 3600,
 //                                 "qem_prevent_flips": true},
-//    "cases": [{"name": "bunny_5k", "mesh": "../data/bun_zipper.ply", "N": 5000, ...any default...}]}
+//    "cases": [{"name": "bunny_5k", "mesh": "../data/bun_zipper.ply", "N": 5000, ...any default...},
+//              {"mesh": "a.ply", "N": 100, "algorithm": "cvd"}]}   ("algorithm": one of "algorithms")
 // Algorithms: "cvd" (remesh_path, metric I) and "openmesh-qem" (OpenMesh quadric decimater, to
 // the vertex count of the case's CVD output when CVD ran first, else to N); a later Lloyd
-// baseline plugs in as another name in run_algorithm().
+// baseline plugs in as one more name in kAlgorithms and one more branch in run_row().
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <tbb/global_control.h>
@@ -108,6 +109,8 @@ std::vector<BenchCase> parse_suite(const std::string& suite_path, json& suite) {
       bc.metric = field<std::string>(c, defaults, "metric", bc.metric);
       if (bc.metric != "I") throw InputError("metric '" + bc.metric + "' is not implemented (only \"I\")");
       bc.algorithms = field<std::vector<std::string>>(c, defaults, "algorithms", bc.algorithms);
+      if (c.contains("algorithm")) bc.algorithms = {c["algorithm"].get<std::string>()};  // one row only
+      if (bc.algorithms.empty()) throw InputError("\"algorithms\" is empty");
       for (const std::string& a : bc.algorithms)
         if (!kAlgorithms.count(a)) throw InputError("unknown algorithm '" + a + "' (cvd, openmesh-qem)");
       bc.distance_samples = field<uint64_t>(c, defaults, "distance_samples", bc.distance_samples);

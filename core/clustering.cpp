@@ -15,40 +15,6 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-inline double dist2(const float* g, const double* c) {
-  double dx = g[0] - c[0], dy = g[1] - c[1], dz = g[2] - c[2];
-  return dx * dx + dy * dy + dz * dz;
-}
-
-// Energy change of moving item (m, g) out of cluster `from` and into cluster `to`, in the
-// numerically stable form of eq. 15 with z = centroid: removing (m, g) from a cluster of mass W
-// and centroid c lowers Σ M‖γ − c‖² by m·W/(W − m)·‖g − c‖²; adding it raises it by
-// m·W/(W + m)·‖g − c‖². Returns {increase, decrease} so the caller can apply a relative margin.
-struct MoveDelta {
-  double increase, decrease;
-};
-
-inline MoveDelta move_delta(double m, const float* g, const ClusterSums& from, const ClusterSums& to) {
-  MoveDelta d{0.0, 0.0};
-  if (from.weight > m) d.decrease = m * from.weight / (from.weight - m) * dist2(g, from.centroid);
-  if (to.weight > 0) d.increase = m * to.weight / (to.weight + m) * dist2(g, to.centroid);
-  return d;
-}
-
-inline void update_centroid(ClusterSums& s) {
-  double inv = s.weight > 0 ? 1.0 / s.weight : 0.0;
-  for (int c = 0; c < 3; ++c) s.centroid[c] = s.sum[c] * inv;
-}
-
-// A move is taken only when it lowers the energy by more than a relative margin, so rounding
-// cannot make an item ping-pong between two clusters forever (DESIGN.md §3).
-constexpr double kRelativeMargin = 1e-10;
-
-inline double gain_of(const MoveDelta& d) {
-  double gain = d.decrease - d.increase;
-  return gain > kRelativeMargin * (d.decrease + d.increase) ? gain : 0.0;
-}
-
 // Removing v from cluster `a` keeps `a` connected when v's neighbours in `a` are connected
 // through the triangles around v (§VI-B: a check on the vertex 1-ring). Conservative: false
 // when the 1-ring is too large to check.
@@ -90,63 +56,39 @@ bool removal_keeps_connected(const MeshView& mesh, std::span<const int32_t> labe
   return groups == 1;
 }
 
-inline void apply_move(uint32_t v, int32_t from, int32_t to, const ItemData& items, std::span<int32_t> labels,
-                       std::vector<ClusterSums>& sums) {
-  const double m = items.weight[v];
-  const float* g = &items.centroid[3 * size_t(v)];
-  ClusterSums& a = sums[from];
-  ClusterSums& b = sums[to];
-  a.weight -= m;
-  b.weight += m;
-  for (int c = 0; c < 3; ++c) {
-    a.sum[c] -= m * g[c];
-    b.sum[c] += m * g[c];
-  }
-  --a.count;
-  ++b.count;
-  update_centroid(a);
-  update_centroid(b);
-  labels[v] = to;
-}
-
 }  // namespace
 
 std::vector<ClusterSums> accumulate_clusters(const ItemData& items, std::span<const int32_t> labels,
                                              uint32_t cluster_count) {
-  std::vector<ClusterSums> sums(cluster_count);
-  for (size_t v = 0; v < labels.size(); ++v) {
-    int32_t l = labels[v];
-    if (l < 0) continue;
-    ClusterSums& s = sums[l];
-    double m = items.weight[v];
-    s.weight += m;
-    for (int c = 0; c < 3; ++c) s.sum[c] += m * items.centroid[3 * v + c];
-    ++s.count;
-  }
-  for (ClusterSums& s : sums) update_centroid(s);
-  return sums;
+  return make_cluster_state(items, labels, cluster_count, Metric::I).iso;
 }
 
 double clustering_energy(const ItemData& items, std::span<const ClusterSums> sums) {
-  // Eq. 12-15 with z_i the centroid: E − ΣA_j = Σ_j M_j‖γ_j‖² − Σ_i ‖ΣMγ‖²/ΣM.
-  double e = items.sum_weighted_norm2;
-  for (const ClusterSums& s : sums)
-    if (s.weight > 0) e -= (s.sum[0] * s.sum[0] + s.sum[1] * s.sum[1] + s.sum[2] * s.sum[2]) / s.weight;
-  return std::max(e, 0.0);
+  ClusterState s;
+  s.iso.assign(sums.begin(), sums.end());
+  return state_energy(items, s);
 }
 
-uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                              std::vector<ClusterSums>& sums, bool constrained, double stop_fraction,
-                              uint32_t max_loops, bool skip_unchanged, ClusteringReport& report,
-                              std::span<const uint8_t> initially_active,
-                              const std::function<void(bool, uint32_t, uint64_t)>& on_loop) {
+namespace {
+
+template <bool kAniso, bool kOffsets>
+uint32_t clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels, ClusterState& state,
+                          const LoopOptions& options, ClusteringReport& report,
+                          std::span<const uint8_t> initially_active) {
+  const bool constrained = options.constrained;
+  auto delta = [&](uint32_t item, int32_t from, int32_t to) {
+    if constexpr (kAniso) return aniso_move_delta<kOffsets>(items, state, item, from, to);
+    else return iso_move_delta<kOffsets>(items, state, item, from, to);
+  };
   const uint32_t V = mesh.vertex_count();
   const auto t0 = std::chrono::steady_clock::now();
   // changed_in[c]: last loop in which cluster c changed. Loops are numbered from 2, so 1 marks
   // the initially active clusters and 0 the ones known to be stable.
-  std::vector<uint32_t> changed_in(sums.size(), 1);
+  const uint32_t K = state.cluster_count();
+  std::vector<uint32_t> changed_in(K, 1);
   if (!initially_active.empty())
-    for (size_t c = 0; c < sums.size(); ++c) changed_in[c] = initially_active[c] ? 1 : 0;
+    for (size_t c = 0; c < K; ++c) changed_in[c] = initially_active[c] ? 1 : 0;
+  std::vector<uint8_t> changed_now;
   // The candidate list holds every vertex on a cluster boundary (the FIFO of Algorithm 1, kept
   // by vertex: a vertex stands for its boundary edges). Vertices of clusters that did not change
   // in the previous loop stay parked in it: the modified-clusters skip of §VI-A, without even
@@ -171,7 +113,7 @@ uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::
     }
   };
   uint32_t loops = 0;
-  for (uint32_t loop = 2; loops < max_loops; ++loop) {
+  for (uint32_t loop = 2; loops < options.max_loops; ++loop) {
     ++loops;
     uint64_t moves = 0;
     size_t kept = 0;
@@ -181,7 +123,7 @@ uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::
         listed[v] = 0;
         continue;
       }
-      if (skip_unchanged && changed_in[labels[v]] + 1 < loop) {
+      if (options.skip_unchanged && changed_in[labels[v]] + 1 < loop) {
         candidates[kept++] = v;  // parked: its cluster did not change since its last test
         continue;
       }
@@ -193,16 +135,21 @@ uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::
         boundary = true;
         // F1: k joins a (b shrinks). F2: v joins b (a shrinks). Compare L_a + L_b only (eq. 15).
         double gain1 = 0, gain2 = 0;
-        if (sums[b].count > 1) gain1 = gain_of(move_delta(items.weight[k], &items.centroid[3 * size_t(k)], sums[b], sums[a]));
-        if (sums[a].count > 1) gain2 = gain_of(move_delta(items.weight[v], &items.centroid[3 * size_t(v)], sums[a], sums[b]));
+        if (state.iso[b].count > 1) gain1 = move_gain(delta(k, b, a));
+        if (state.iso[a].count > 1) gain2 = move_gain(delta(v, a, b));
         if (constrained) {
           if (gain1 > 0 && !removal_keeps_connected(mesh, labels, k, b)) gain1 = 0;
           if (gain2 > 0 && !removal_keeps_connected(mesh, labels, v, a)) gain2 = 0;
         }
         if (gain1 <= 0 && gain2 <= 0) continue;
         const uint32_t moved = gain1 >= gain2 ? k : v;
-        if (moved == k) apply_move(k, b, a, items, labels, sums);
-        else apply_move(v, a, b, items, labels, sums);
+        if (moved == k) {
+          apply_move(items, state, k, b, a);
+          labels[k] = a;
+        } else {
+          apply_move(items, state, v, a, b);
+          labels[v] = b;
+        }
         changed_in[a] = changed_in[b] = loop;
         ++moves;
         list_vertex(moved);
@@ -213,12 +160,33 @@ uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::
     }
     candidates.resize(kept);
     report.moves_per_loop.push_back(moves);
-    report.energy_per_loop.push_back(clustering_energy(items, sums));
+    report.energy_per_loop.push_back(state_energy(items, state));
+    if (kOffsets && moves > 0 && loops < options.offset_update_loops) {
+      // New QEM sites for the clusters that changed (the energy is monotone at fixed sites only;
+      // freezing them after offset_update_loops makes the pass terminate).
+      changed_now.assign(K, 0);
+      for (uint32_t c = 0; c < K; ++c) changed_now[c] = changed_in[c] == loop;
+      update_site_offsets(state, changed_now);
+    }
     report.seconds_per_loop.push_back(seconds_since(t0));
-    if (on_loop) on_loop(constrained, loops, moves);
-    if (moves == 0 || double(moves) < stop_fraction * double(V)) break;
+    if (options.on_loop) options.on_loop(constrained, loops, moves);
+    if (moves == 0 || double(moves) < options.stop_fraction * double(V)) break;
   }
   return loops;
+}
+
+}  // namespace
+
+uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels, ClusterState& state,
+                              const LoopOptions& options, ClusteringReport& report,
+                              std::span<const uint8_t> initially_active) {
+  const bool aniso = !state.aniso.empty(), offsets = state.use_offsets;
+  if (aniso) {
+    return offsets ? clustering_loops<true, true>(mesh, items, labels, state, options, report, initially_active)
+                   : clustering_loops<true, false>(mesh, items, labels, state, options, report, initially_active);
+  }
+  return offsets ? clustering_loops<false, true>(mesh, items, labels, state, options, report, initially_active)
+                 : clustering_loops<false, false>(mesh, items, labels, state, options, report, initially_active);
 }
 
 uint64_t clean_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
@@ -290,14 +258,31 @@ bool clusters_connected(const MeshView& mesh, std::span<const int32_t> labels, u
 ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                                      uint32_t cluster_count, const ClusteringOptions& options) {
   ClusteringReport report;
-  std::vector<ClusterSums> sums = accumulate_clusters(items, labels, cluster_count);
-  report.unconstrained_loops = run_clustering_loops(mesh, items, labels, sums, false, options.near_convergence,
-                                                    options.max_loops, options.skip_unchanged, report, {}, options.on_loop);
+  LoopOptions loop;
+  loop.stop_fraction = options.near_convergence;
+  loop.max_loops = options.max_loops;
+  loop.skip_unchanged = options.skip_unchanged;
+  loop.offset_update_loops = options.offset_update_loops;
+  loop.on_loop = options.on_loop;
+  // First convergence with centroid sites (I or A); the Q metrics then embed the QEM sites
+  // (§V-C) and converge again before the cleaning.
+  const Metric base = is_anisotropic(options.metric) ? Metric::A : Metric::I;
+  ClusterState state = make_cluster_state(items, labels, cluster_count, base);
+  report.unconstrained_loops = run_clustering_loops(mesh, items, labels, state, loop, report);
+  if (uses_quadrics(options.metric)) {
+    state = make_cluster_state(items, labels, cluster_count, options.metric, options.qem_threshold);
+    update_site_offsets(state);
+    report.unconstrained_loops += run_clustering_loops(mesh, items, labels, state, loop, report);
+  }
   clean_clusters(mesh, items, labels, cluster_count, report);
   // Incremental sums drift: rebuild them before the constrained pass (DESIGN.md §3).
-  sums = accumulate_clusters(items, labels, cluster_count);
-  report.constrained_loops = run_clustering_loops(mesh, items, labels, sums, true, 0.0, options.max_loops,
-                                                  options.skip_unchanged, report, {}, options.on_loop);
+  state = make_cluster_state(items, labels, cluster_count, options.metric, options.qem_threshold);
+  update_site_offsets(state);
+  loop.constrained = true;
+  loop.stop_fraction = 0.0;
+  report.constrained_loops = run_clustering_loops(mesh, items, labels, state, loop, report);
+  report.metric = state.metric;
+  report.final_energy = state_energy(items, state);
   return report;
 }
 

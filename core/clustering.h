@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/cluster_energy.h"
 #include "core/item_data.h"
 #include "core/mesh_view.h"
 
@@ -46,9 +47,12 @@ std::vector<int32_t> initial_sampling(const MeshView& mesh, const ItemData& item
                                       uint64_t seed);
 
 struct ClusteringOptions {
+  Metric metric = Metric::I;       ///< energy (items must carry tensors for A/AQ, quadrics for IQ/AQ)
   double near_convergence = 1e-3;  ///< stop the unconstrained pass when < this fraction of items moved
   uint32_t max_loops = 2000;       ///< safety bound on loops per pass
   bool skip_unchanged = true;      ///< the modified-clusters skip of §VI-A
+  uint32_t offset_update_loops = 5;  ///< Q metrics: loops per pass after which the QEM sites freeze
+  double qem_threshold = 1e-2;      ///< Q metrics: relative eigenvalue truncation (ClusterState)
   /// Called after every loop with (constrained pass?, loop number, items moved); for progress.
   std::function<void(bool, uint32_t, uint64_t)> on_loop;
 };
@@ -60,39 +64,44 @@ struct ClusteringReport {
   uint32_t unconstrained_loops = 0, constrained_loops = 0;
   uint64_t cleaned_vertices = 0;        ///< vertices reset by the cleaning step
   uint32_t disconnected_clusters = 0;   ///< clusters found in several pieces by the cleaning step
+  Metric metric = Metric::I;            ///< metric actually used (A/AQ fall back to I/IQ without tensors)
+  double final_energy = 0;              ///< energy of the final clustering under that metric
 };
 
-/// Per-cluster accumulators: ΣM, ΣMγ (relative to ItemData::origin) and the vertex count.
-struct ClusterSums {
-  double weight = 0;
-  double sum[3] = {0, 0, 0};
-  double centroid[3] = {0, 0, 0};  ///< sum / weight, kept up to date so a test costs no division
-  uint32_t count = 0;
+/// One pass of Algorithm 1 (see run_clustering_loops).
+struct LoopOptions {
+  bool constrained = false;       ///< every move keeps the source cluster connected (§VI-B)
+  double stop_fraction = 0.0;     ///< stop when fewer than this fraction of V items moved in a loop
+  uint32_t max_loops = 2000;
+  bool skip_unchanged = true;
+  uint32_t offset_update_loops = 5;  ///< Q metrics: re-solve the sites of changed clusters until then
+  std::function<void(bool, uint32_t, uint64_t)> on_loop;
 };
 
-/// Recomputes every cluster's sums from the labels (fixed order: deterministic).
+/// Recomputes every cluster's isotropic sums from the labels (fixed order: deterministic).
 std::vector<ClusterSums> accumulate_clusters(const ItemData& items, std::span<const int32_t> labels,
                                              uint32_t cluster_count);
 
 /// E_iso − Σ A_j = Σ_j M_j ‖γ_j − c_i‖² with c_i the cluster centroids (eq. 12 with z_i = c_i).
 double clustering_energy(const ItemData& items, std::span<const ClusterSums> sums);
 
-/// Full minimisation (Algorithm 1 + §VI-B): unconstrained loops to near-convergence, cleaning
+/// Full minimisation (Algorithm 1 + §VI-B): unconstrained loops to near-convergence (with
+/// centroid sites; the Q metrics then embed their QEM sites and converge again), cleaning
 /// (each cluster keeps its heaviest connected piece; the rest is freed and re-absorbed), then
 /// loops with the 1-ring connectivity check until no item moves. Never empties a cluster.
 /// Labels must be a valid initial clustering (every cluster non-empty). Single-threaded.
 ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                                      uint32_t cluster_count, const ClusteringOptions& options = {});
 
-/// Loops of Algorithm 1 until no item moves, fewer than `stop_fraction`·V items moved, or
-/// `max_loops` (constrained: every move keeps the source cluster connected, checked on the
-/// vertex's 1-ring). `initially_active` (size K, or empty = all) marks the clusters whose
-/// boundaries need testing; the others are known stable. Appends to `report`; returns loops run.
+/// Loops of Algorithm 1 under the state's metric until no item moves, fewer than
+/// `stop_fraction`·V items moved, or `max_loops` (constrained: every move keeps the source
+/// cluster connected, checked on the vertex's 1-ring). Each committed move strictly lowers the
+/// energy at the current sites; Q-metric sites of changed clusters are re-solved between loops.
+/// `initially_active` (size K, or empty = all) marks the clusters whose boundaries need
+/// testing; the others are known stable. Appends to `report`; returns loops run. Single-threaded.
 uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                              std::vector<ClusterSums>& sums, bool constrained, double stop_fraction,
-                              uint32_t max_loops, bool skip_unchanged, ClusteringReport& report,
-                              std::span<const uint8_t> initially_active,
-                              const std::function<void(bool, uint32_t, uint64_t)>& on_loop = {});
+                              ClusterState& state, const LoopOptions& options, ClusteringReport& report,
+                              std::span<const uint8_t> initially_active = {});
 
 /// Cleaning step (§VI-B, Fig. 6): frees every piece of a cluster but its heaviest connected
 /// one, then gives each freed vertex to the cluster that reaches it first by BFS.

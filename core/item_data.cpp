@@ -4,6 +4,8 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
+#include <utility>
+
 #include <cmath>
 
 namespace streamcvd {
@@ -57,6 +59,18 @@ ItemData compute_item_data(const MeshView& mesh, std::span<const float> density)
     items.sum_weighted_norm2 += w * (double(g[0]) * g[0] + double(g[1]) * g[1] + double(g[2]) * g[2]);
   }
   return items;
+}
+
+void attach_tensors(ItemData& items, std::vector<float> tensors) {
+  items.tensor = std::move(tensors);
+  items.sum_tensor_norm2 = 0;
+  for (size_t v = 0; v < items.weight.size(); ++v) {
+    const float* T = &items.tensor[6 * v];
+    const float* g = &items.centroid[3 * v];
+    double q = double(T[0]) * g[0] * g[0] + double(T[3]) * g[1] * g[1] + double(T[5]) * g[2] * g[2] +
+               2.0 * (double(T[1]) * g[0] * g[1] + double(T[2]) * g[0] * g[2] + double(T[4]) * g[1] * g[2]);
+    items.sum_tensor_norm2 += items.weight[v] * q;
+  }
 }
 
 }  // namespace streamcvd

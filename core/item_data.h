@@ -18,6 +18,12 @@ struct ItemData {
   std::vector<float> centroid;  ///< γ_j − origin, 3 per vertex: centroid of the barycentric dual cell
   double total_weight = 0;      ///< Σ M_j
   double sum_weighted_norm2 = 0;  ///< Σ M_j ‖γ_j‖² (the constant of eq. 13, for reporting E)
+  /// Metrics A/AQ: per-vertex tensor T_j (xx, xy, xz, yy, yz, zz); the item tensor of eq. 16
+  /// is K_j = M_j·T_j, so the anisotropic energy is area-weighted like the isotropic one.
+  std::vector<float> tensor;
+  double sum_tensor_norm2 = 0;  ///< Σ γ_jᵀK_jγ_j (the constant of eq. 17, for reporting E)
+  /// Metrics IQ/AQ: per-vertex quadric, 10 floats (A 6, b 3, c), relative to `origin`.
+  std::vector<float> quadric;
 };
 
 /// Computes M_j and γ_j for every vertex. The barycentric dual cell of vertex v in triangle
@@ -25,5 +31,8 @@ struct ItemData {
 /// ρ = 1) multiplies each weight. Isolated vertices get weight 0 and γ = their position.
 /// O(F) time; TBB-parallel over vertices, deterministic.
 ItemData compute_item_data(const MeshView& mesh, std::span<const float> density = {});
+
+/// Sets items.tensor (6 floats per vertex) and the constant Σ γ_jᵀK_jγ_j. O(V), fixed order.
+void attach_tensors(ItemData& items, std::vector<float> tensors);
 
 }  // namespace streamcvd

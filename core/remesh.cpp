@@ -1,12 +1,15 @@
 #include "core/remesh.h"
 
 #include "core/bvh.h"
+#include "core/curvature.h"
+#include "core/metric_field.h"
 #include "core/errors.h"
 #include "core/repair.h"
 
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <limits>
 #include <numeric>
 
@@ -18,12 +21,13 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-std::vector<double> cluster_centroids(const ItemData& items, std::span<const ClusterSums> sums) {
-  std::vector<double> z(3 * sums.size(), 0.0);
-  for (size_t c = 0; c < sums.size(); ++c)
-    for (int k = 0; k < 3; ++k)
-      z[3 * c + k] = items.origin[k] + (sums[c].weight > 0 ? sums[c].sum[k] / sums[c].weight : 0.0);
-  return z;
+// Output position of every cluster: its site under the metric (centroid, anisotropic centroid,
+// or QEM point for the Q metrics).
+std::vector<double> metric_sites(const ItemData& items, std::span<const int32_t> labels, uint32_t K, Metric metric,
+                                 double qem_threshold) {
+  ClusterState state = make_cluster_state(items, labels, K, metric, qem_threshold);
+  update_site_offsets(state);
+  return cluster_sites(items, state);
 }
 
 // Moves each cluster's representative to the closest point of the input surface among the
@@ -60,6 +64,60 @@ void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels
       for (int k = 0; k < 3; ++k) z[3 * c + k] = best[3 * c + k];
 }
 
+void place_output_vertices(DualMesh& dual, std::span<const double> z) {
+  for (uint32_t v = 0; v < dual.mesh.vertex_count(); ++v) {
+    const int32_t c = dual.cluster_of_output_vertex[v];
+    if (c >= 0)
+      for (int k = 0; k < 3; ++k) dual.mesh.positions[3 * size_t(v) + k] = float(z[3 * size_t(c) + k]);
+  }
+}
+
+// Quality Q = 6/√3 · area / (half-perimeter · longest edge) of an output triangle.
+double triangle_quality(const float* a, const float* b, const float* c) {
+  double e[3][3], len[3];
+  for (int k = 0; k < 3; ++k) {
+    e[0][k] = double(b[k]) - a[k];
+    e[1][k] = double(c[k]) - b[k];
+    e[2][k] = double(a[k]) - c[k];
+  }
+  for (int i = 0; i < 3; ++i) len[i] = std::sqrt(e[i][0] * e[i][0] + e[i][1] * e[i][1] + e[i][2] * e[i][2]);
+  const double cx = e[0][1] * e[1][2] - e[0][2] * e[1][1], cy = e[0][2] * e[1][0] - e[0][0] * e[1][2],
+               cz = e[0][0] * e[1][1] - e[0][1] * e[1][0];
+  const double area = 0.5 * std::sqrt(cx * cx + cy * cy + cz * cz);
+  const double denom = 0.5 * (len[0] + len[1] + len[2]) * std::max({len[0], len[1], len[2]});
+  return denom > 0 ? 6.0 / std::sqrt(3.0) * area / denom : 0.0;
+}
+
+// QEM sites of three clusters along one straight crease are collinear, and two clusters may
+// share a corner: their triangle is a needle or has no area at all. Such a triangle is worse
+// than the small approximation gain, so its clusters fall back to their projected centroids.
+// Returns the number of sites reverted.
+uint64_t revert_needle_sites(DualMesh& dual, std::vector<double>& z, std::span<const double> fallback) {
+  constexpr double kNeedleQuality = 1e-4;
+  uint64_t reverted = 0;
+  std::vector<uint8_t> done(z.size() / 3, 0);
+  for (int pass = 0; pass < 3; ++pass) {
+    bool changed = false;
+    const auto& tri = dual.mesh.triangles;
+    const float* P = dual.mesh.positions.data();
+    for (size_t f = 0; f < tri.size(); f += 3) {
+      if (triangle_quality(P + 3 * size_t(tri[f]), P + 3 * size_t(tri[f + 1]), P + 3 * size_t(tri[f + 2])) >= kNeedleQuality)
+        continue;
+      for (int k = 0; k < 3; ++k) {
+        const int32_t c = dual.cluster_of_output_vertex[tri[f + k]];
+        if (c < 0 || done[c]) continue;
+        done[c] = 1;
+        changed = true;
+        ++reverted;
+        for (int i = 0; i < 3; ++i) z[3 * size_t(c) + i] = fallback[3 * size_t(c) + i];
+      }
+    }
+    if (!changed) break;
+    place_output_vertices(dual, z);
+  }
+  return reverted;
+}
+
 // V − E + F of a triangle soup (referenced vertices, distinct undirected edges).
 int64_t euler_characteristic(const TriangleSoupView& soup) {
   std::vector<uint64_t> edges;
@@ -82,14 +140,46 @@ int64_t euler_characteristic(const TriangleSoupView& soup) {
 RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   RemeshResult result;
   auto t = std::chrono::steady_clock::now();
-  ItemData items = compute_item_data(mesh, options.density);
+  const Metric metric = options.clustering.metric;
+  std::vector<float> density = options.density;
+  std::vector<float> sampling_density;  // A/AQ: the metric's area factor, for the initial sampling
+  std::vector<float> tensors;
+  if (options.gradation != 0 || is_anisotropic(metric)) {
+    const Curvature curvature = compute_curvature(mesh);
+    result.seconds.curvature = seconds_since(t);
+    if (options.gradation != 0) {
+      std::vector<float> gradation = gradation_density(mesh, curvature, options.gradation);
+      if (density.empty()) density = std::move(gradation);
+      else
+        for (size_t v = 0; v < density.size(); ++v) density[v] *= gradation[v];
+    }
+    if (is_anisotropic(metric)) {
+      AnisotropicField field = anisotropic_field(mesh, curvature);
+      tensors = std::move(field.tensors);
+      sampling_density = std::move(field.density);
+      if (!density.empty())
+        for (size_t v = 0; v < density.size(); ++v) sampling_density[v] *= density[v];
+    }
+  }
+  t = std::chrono::steady_clock::now();
+  // The anisotropic energy is area-weighted (the tensors carry the curvature); the gradation
+  // density then only shapes the initial sampling, as in the paper's A/AQ (§VII).
+  ItemData items = compute_item_data(mesh, is_anisotropic(metric) ? std::span<const float>() : density);
+  ItemData sampling_items;
+  if (is_anisotropic(metric)) {
+    sampling_items = compute_item_data(mesh, sampling_density);
+    attach_tensors(items, std::move(tensors));
+  }
+  if (uses_quadrics(metric)) items.quadric = vertex_quadrics(mesh, items.origin);
   result.seconds.items = seconds_since(t);
 
   t = std::chrono::steady_clock::now();
   result.budget = plan_component_budget(mesh, items, options.vertices, options.small_components);
   const uint32_t K = result.budget.total_clusters;
   result.clusters = K;
-  std::vector<int32_t> labels = initial_sampling(mesh, items, result.budget, options.seed);
+  std::vector<int32_t> labels =
+      initial_sampling(mesh, is_anisotropic(metric) ? sampling_items : items, result.budget, options.seed);
+  sampling_items = ItemData{};
   result.seconds.sampling = seconds_since(t);
 
   t = std::chrono::steady_clock::now();
@@ -110,9 +200,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   std::vector<uint8_t> ever_touched(K, 0);
   for (uint32_t round = 0;; ++round) {
     t = std::chrono::steady_clock::now();
-    std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
-    result.final_energy = clustering_energy(items, sums);
-    dual = build_dual_mesh(mesh, labels, K, cluster_centroids(items, sums), dual_options, &boundary_loops);
+    dual = build_dual_mesh(mesh, labels, K, metric_sites(items, labels, K, metric, options.clustering.qem_threshold), dual_options, &boundary_loops);
     defects = find_manifold_defects(dual.mesh.view());
     result.seconds.dual += seconds_since(t);
     if (defects.empty() || round == options.repair_rounds) break;
@@ -147,27 +235,38 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   if (defects.empty() && result.repair_rounds_used > 0) {
     t = std::chrono::steady_clock::now();
     std::vector<int32_t> before = labels;
-    std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
-    run_clustering_loops(mesh, items, labels, sums, true, 0.0, options.clustering.max_loops,
-                         options.clustering.skip_unchanged, result.clustering, ever_touched);
-    DualMesh relaxed = build_dual_mesh(mesh, labels, K, cluster_centroids(items, sums), dual_options, &boundary_loops);
+    ClusterState state = make_cluster_state(items, labels, K, metric, options.clustering.qem_threshold);
+    update_site_offsets(state);
+    LoopOptions relax;
+    relax.constrained = true;
+    relax.max_loops = options.clustering.max_loops;
+    relax.skip_unchanged = options.clustering.skip_unchanged;
+    relax.offset_update_loops = options.clustering.offset_update_loops;
+    run_clustering_loops(mesh, items, labels, state, relax, result.clustering, ever_touched);
+    DualMesh relaxed = build_dual_mesh(mesh, labels, K, metric_sites(items, labels, K, metric, options.clustering.qem_threshold), dual_options, &boundary_loops);
     if (find_manifold_defects(relaxed.mesh.view()).empty()) {
       dual = std::move(relaxed);
-      result.final_energy = clustering_energy(items, sums);
       result.repair_relaxed = true;
     } else {
       labels.swap(before);
     }
     result.seconds.repair += seconds_since(t);
   }
-  // Final placement (defects do not depend on positions, so it is done once, here).
-  if (options.project_to_surface) {
-    std::vector<double> z = cluster_centroids(items, accumulate_clusters(items, labels, K));
-    project_onto_clusters(mesh, labels, z);
-    for (uint32_t v = 0; v < dual.mesh.vertex_count(); ++v) {
-      int32_t c = dual.cluster_of_output_vertex[v];
-      if (c >= 0)
-        for (int k = 0; k < 3; ++k) dual.mesh.positions[3 * size_t(v) + k] = float(z[3 * size_t(c) + k]);
+  // Final placement (defects do not depend on positions, so it is done once, here). QEM sites
+  // already lie on the surface's features; centroids are projected onto the surface.
+  {
+    ClusterState state = make_cluster_state(items, labels, K, metric, options.clustering.qem_threshold);
+    update_site_offsets(state);
+    result.final_energy = state_energy(items, state);
+    std::vector<double> z = cluster_sites(items, state);
+    if (uses_quadrics(metric)) {
+      std::vector<double> fallback = cluster_sites(items, make_cluster_state(items, labels, K, metric, options.clustering.qem_threshold));
+      if (options.project_to_surface) project_onto_clusters(mesh, labels, fallback);
+      place_output_vertices(dual, z);
+      result.sites_reverted = revert_needle_sites(dual, z, fallback);
+    } else {
+      if (options.project_to_surface) project_onto_clusters(mesh, labels, z);
+      place_output_vertices(dual, z);
     }
   }
   if (!defects.empty()) {

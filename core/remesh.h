@@ -24,10 +24,13 @@ struct RemeshOptions {
   uint32_t repair_rounds = 12; ///< split/merge rounds around dual-mesh defects before the cleanup
   ClusteringOptions clustering;
   std::vector<float> density;  ///< optional ρ per vertex (size V), empty = uniform
+  /// Gradation γ of eq. 20: ρ_j multiplied by the clamped curvature magnitude to the power γ
+  /// (0 = uniform). With A/AQ it shapes only the initial sampling, as in the paper.
+  double gradation = 0;
 };
 
 struct StageTimes {
-  double items = 0, sampling = 0, clustering = 0, repair = 0, dual = 0;
+  double curvature = 0, items = 0, sampling = 0, clustering = 0, repair = 0, dual = 0;
 };
 
 struct RemeshResult {
@@ -37,11 +40,12 @@ struct RemeshResult {
   ComponentBudget budget;
   ClusteringReport clustering;
   StageTimes seconds;
-  double final_energy = 0;           ///< E_iso − ΣA_j of the final clustering
+  double final_energy = 0;           ///< energy − ΣA_j of the final clustering under its metric
   uint32_t repair_rounds_used = 0;
   uint64_t repaired_clusters = 0;    ///< clusters touched by the repair
   uint64_t repair_splits = 0, repair_merges = 0, repair_islands = 0;
-  bool repair_relaxed = false;       ///< the repaired region was relaxed without new defects
+  bool repair_relaxed = false;
+  uint64_t sites_reverted = 0;       ///< Q metrics: QEM sites of needle triangles moved back to the centroid       ///< the repaired region was relaxed without new defects
   uint64_t defect_vertices = 0;      ///< output vertices still on a defect at the end (0 = valid)
   uint64_t defect_faces_removed = 0;   ///< faces deleted by the last-resort cleanup (holes opened)
   uint64_t defect_vertices_removed = 0;  ///< vertices deleted with them (output has fewer than N)
@@ -55,8 +59,9 @@ struct RemeshResult {
   bool topology_changed = false;
 };
 
-/// Remeshes `mesh` to `options.vertices` clusters (metric I, §V-A). The output vertex of each
-/// cluster is its centroid; strips add vertices along boundaries. Checks the dual for
+/// Remeshes `mesh` to `options.vertices` clusters under options.clustering.metric (I, IQ, A,
+/// AQ; §V). The output vertex of each cluster is its site: the centroid projected onto the
+/// surface (I, A) or the QEM point (IQ, AQ); strips add vertices along boundaries. Checks the dual for
 /// non-manifold edges/vertices, isolated vertices and duplicate faces, and repairs the
 /// clustering around each defect (core/repair.h, up to repair_rounds). Single-threaded clustering; deterministic for a seed.
 RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options);

@@ -289,18 +289,21 @@ TEST(ClusteringMinimize, PassByPassEnergyMonotoneWithAndWithoutSkip) {
   for (bool skip : {true, false}) {
     SCOPED_TRACE(skip ? "skip unchanged" : "test every edge");
     std::vector<int32_t> labels = initial_sampling(m.view, items, b, 5);
-    std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
+    ClusterState state = make_cluster_state(items, labels, K, Metric::I);
     ClusteringReport free_pass;
-    uint32_t loops = run_clustering_loops(m.view, items, labels, sums, false, 0.0, 2000, skip, free_pass, {});
+    LoopOptions pass;
+    pass.skip_unchanged = skip;
+    uint32_t loops = run_clustering_loops(m.view, items, labels, state, pass, free_pass);
     EXPECT_EQ(loops, free_pass.energy_per_loop.size());
     EXPECT_EQ(free_pass.moves_per_loop.back(), 0u) << "stop_fraction 0 runs to a fixed point";
     expect_non_increasing(free_pass.energy_per_loop, 0, loops, "unconstrained pass");
 
     clean_clusters(m.view, items, labels, K, free_pass);
     EXPECT_TRUE(clusters_connected(m.view, labels, K));
-    sums = accumulate_clusters(items, labels, K);
+    state = make_cluster_state(items, labels, K, Metric::I);
     ClusteringReport constrained;
-    loops = run_clustering_loops(m.view, items, labels, sums, true, 0.0, 2000, skip, constrained, {});
+    pass.constrained = true;
+    loops = run_clustering_loops(m.view, items, labels, state, pass, constrained);
     expect_non_increasing(constrained.energy_per_loop, 0, loops, "constrained pass");
     EXPECT_TRUE(clusters_connected(m.view, labels, K));
     EXPECT_TRUE(every_cluster_connected_bfs(m.view, labels, K));
@@ -333,15 +336,17 @@ TEST(ClusteringMinimize, InactiveClustersAreNotTested) {
   const uint32_t K = b.total_clusters;
   const std::vector<int32_t> initial = initial_sampling(m.view, items, b, 8);
   std::vector<int32_t> labels = initial;
-  std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
+  ClusterState state = make_cluster_state(items, labels, K, Metric::I);
   ClusteringReport none;
   std::vector<uint8_t> inactive(K, 0);
-  run_clustering_loops(m.view, items, labels, sums, false, 0.0, 100, true, none, inactive);
+  LoopOptions pass;
+  pass.max_loops = 100;
+  run_clustering_loops(m.view, items, labels, state, pass, none, inactive);
   EXPECT_EQ(none.moves_per_loop.front(), 0u);
   EXPECT_EQ(labels, initial);
   ClusteringReport all;
   std::vector<uint8_t> active(K, 1);
-  run_clustering_loops(m.view, items, labels, sums, false, 0.0, 100, true, all, active);
+  run_clustering_loops(m.view, items, labels, state, pass, all, active);
   EXPECT_GT(all.moves_per_loop.front(), 0u);
   EXPECT_NE(labels, initial);
 }
@@ -355,9 +360,13 @@ TEST(ClusteringMinimize, ConvergedClusteringIsAFixedPoint) {
   std::vector<int32_t> labels = initial_sampling(m.view, items, b, 9);
   minimize_clustering(m.view, items, labels, b.total_clusters);
   std::vector<int32_t> before = labels;
-  std::vector<ClusterSums> sums = accumulate_clusters(items, labels, b.total_clusters);
+  ClusterState state = make_cluster_state(items, labels, b.total_clusters, Metric::I);
   ClusteringReport again;
-  run_clustering_loops(m.view, items, labels, sums, true, 0.0, 10, false, again, {});
+  LoopOptions pass;
+  pass.constrained = true;
+  pass.max_loops = 10;
+  pass.skip_unchanged = false;
+  run_clustering_loops(m.view, items, labels, state, pass, again);
   ASSERT_FALSE(again.moves_per_loop.empty());
   EXPECT_EQ(again.moves_per_loop.front(), 0u);
   EXPECT_EQ(labels, before);

@@ -50,6 +50,7 @@ struct ClosedCase {
   std::vector<uint32_t> budgets;
   int subdivide = -1;                 // PipelineOptions::subdivide
   std::vector<uint64_t> seeds = {20080401};
+  Metric metric = Metric::I;
 };
 
 void check_closed_remesh(const ClosedCase& c) {
@@ -63,6 +64,7 @@ void check_closed_remesh(const ClosedCase& c) {
       PipelineOptions o;
       o.remesh.vertices = n;
       o.remesh.seed = seed;
+      o.remesh.clustering.metric = c.metric;
       o.subdivide = c.subdivide;
       PipelineResult r = remesh_store(store, o);
       const TopologyStats t = compute_topology_stats(r.remesh.mesh.view());
@@ -101,6 +103,18 @@ TEST(RemeshClosed, SphereKeepsGenusZeroAndExactCount) {
 
 TEST(RemeshClosed, TorusKeepsGenusOneAndExactCount) {
   check_closed_remesh({"torus", make_torus(160, 64), 1, kBudgets, -1, {20080401, 2}});
+}
+
+TEST(RemeshClosed, EveryMetricKeepsTheGuarantees) {
+  // IQ, A and AQ move the sites (QEM points, anisotropic centroids) and reshape the clusters:
+  // the output guarantees must hold for each of them as for I.
+  const MeshBuffers fertility = read_mesh(test::data_path("fertility.off.zst"));
+  for (Metric m : {Metric::IQ, Metric::A, Metric::AQ}) {
+    SCOPED_TRACE(metric_name(m));
+    check_closed_remesh({"sphere", make_icosphere(4), 0, {300, 1000}, -1, {20080401}, m});
+    check_closed_remesh({"torus", make_torus(160, 64), 1, {500, 2000}, -1, {20080401}, m});
+    check_closed_remesh({"fertility", fertility, 4, {1000, 2000}, -1, {20080401}, m});
+  }
 }
 
 TEST(RemeshClosed, FertilityKeepsGenusFourAndExactCount) {

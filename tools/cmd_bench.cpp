@@ -9,7 +9,7 @@
 //                                 "qem_prevent_flips": true},
 //    "cases": [{"name": "bunny_5k", "mesh": "../data/bun_zipper.ply", "N": 5000, ...any default...},
 //              {"mesh": "a.ply", "N": 100, "algorithm": "cvd"}]}   ("algorithm": one of "algorithms")
-// Algorithms: "cvd" (remesh_path, metric I) and "openmesh-qem" (OpenMesh quadric decimater, to
+// Algorithms: "cvd" (remesh_path, the case's metric) and "openmesh-qem" (OpenMesh quadric decimater, to
 // the vertex count of the case's CVD output when CVD ran first, else to N); a later Lloyd
 // baseline plugs in as one more name in kAlgorithms and one more branch in run_row().
 #include <sys/resource.h>
@@ -107,7 +107,8 @@ std::vector<BenchCase> parse_suite(const std::string& suite_path, json& suite) {
       if (threads < 0 || threads > 4096) throw InputError("threads must be within 0..4096 (0: all cores)");
       bc.threads = uint32_t(threads);
       bc.metric = field<std::string>(c, defaults, "metric", bc.metric);
-      if (bc.metric != "I") throw InputError("metric '" + bc.metric + "' is not implemented (only \"I\")");
+      Metric parsed;
+      if (!parse_metric(bc.metric, parsed)) throw InputError("unknown metric '" + bc.metric + "' (I, IQ, A, AQ)");
       bc.algorithms = field<std::vector<std::string>>(c, defaults, "algorithms", bc.algorithms);
       if (c.contains("algorithm")) bc.algorithms = {c["algorithm"].get<std::string>()};  // one row only
       if (bc.algorithms.empty()) throw InputError("\"algorithms\" is empty");
@@ -156,11 +157,13 @@ json run_row(const BenchCase& c, const std::string& algorithm, uint32_t target, 
     PipelineOptions options;
     options.remesh.vertices = c.vertices;
     options.remesh.seed = c.seed;
+    parse_metric(c.metric, options.remesh.clustering.metric);
     PipelineResult p = remesh_path(c.mesh_path, options);
     const double total = now_seconds() - t0;
     const RemeshResult& rm = p.remesh;
     r["input"] = {{"vertices", p.input.vertices}, {"faces", p.input.faces}, {"subdivision_levels", p.subdivision_levels}};
     r["seconds"] = {{"load", p.load_seconds},          {"store", p.store_seconds},   {"subdivide", p.subdivide_seconds},
+                    {"curvature", rm.seconds.curvature},
                     {"items", rm.seconds.items},       {"sampling", rm.seconds.sampling},
                     {"clustering", rm.seconds.clustering}, {"repair", rm.seconds.repair},
                     {"dual", rm.seconds.dual},         {"algorithm", total - p.load_seconds}, {"total", total}};

@@ -217,6 +217,22 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
 
 }  // namespace
 
+std::vector<Triple> boundary_strip_faces(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
+                                         uint32_t cluster_count, std::span<const uint32_t> cluster_size,
+                                         uint32_t& strip_vertices) {
+  // The strip code reads chord ends back from the output positions: give it a scratch dual
+  // whose first cluster_count vertices stand for the clusters (identity numbering).
+  DualMesh scratch;
+  scratch.mesh.positions.assign(3 * size_t(cluster_count), 0.0f);
+  scratch.cluster_of_output_vertex.assign(cluster_count, 0);
+  std::vector<uint32_t> identity(cluster_count);
+  std::iota(identity.begin(), identity.end(), 0u);
+  std::vector<Triple> faces;
+  add_boundary_strips(mesh, loops, labels, identity, cluster_size, scratch, faces);
+  strip_vertices = scratch.mesh.vertex_count() - cluster_count;
+  return faces;
+}
+
 DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count,
                          std::span<const double> cluster_positions, const DualMeshOptions& options,
                          const BoundaryLoops* boundary_loops) {

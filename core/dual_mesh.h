@@ -4,6 +4,7 @@
 // input boundaries so the output boundary follows the input one.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -46,6 +47,15 @@ BoundaryLoops find_boundary_loops(const MeshView& mesh);
 DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count,
                          std::span<const double> cluster_positions, const DualMeshOptions& options = {},
                          const BoundaryLoops* boundary_loops = nullptr);
+
+/// The labels-only topology of the §VI-D strips, for defect checks that need no positions:
+/// the strip faces of every loop with cluster c as vertex c and the strip vertices numbered
+/// from cluster_count up (`strip_vertices` receives their count). Same faces, up to that
+/// renumbering, as build_dual_mesh adds. O(boundary size). Deterministic.
+std::vector<std::array<uint32_t, 3>> boundary_strip_faces(const MeshView& mesh, const BoundaryLoops& loops,
+                                                          std::span<const int32_t> labels, uint32_t cluster_count,
+                                                          std::span<const uint32_t> cluster_size,
+                                                          uint32_t& strip_vertices);
 
 /// Output vertices involved in a defect of a triangle mesh: non-manifold edges (> 2 faces),
 /// edges used twice in the same direction, vertices whose faces do not form one fan,

@@ -105,61 +105,29 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   const BoundaryLoops boundary_loops = find_boundary_loops(mesh);
   DualMeshOptions dual_options;
   dual_options.boundary_strips = options.boundary_strips;
-  DualMesh dual;
-  std::vector<uint32_t> defects;
-  std::vector<uint8_t> ever_touched(K, 0);
-  for (uint32_t round = 0;; ++round) {
-    t = std::chrono::steady_clock::now();
-    std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
-    result.final_energy = clustering_energy(items, sums);
-    dual = build_dual_mesh(mesh, labels, K, cluster_centroids(items, sums), dual_options, &boundary_loops);
-    defects = find_manifold_defects(dual.mesh.view());
-    result.seconds.dual += seconds_since(t);
-    if (defects.empty() || round == options.repair_rounds) break;
-    // Re-cluster around each defect: its clusters and their neighbours (a ring more each round).
-    t = std::chrono::steady_clock::now();
-    // Strip vertices have no cluster: take the clusters of the faces around them instead.
-    std::vector<uint8_t> is_defect(dual.mesh.vertex_count(), 0);
-    for (uint32_t v : defects) is_defect[v] = 1;
-    std::vector<int32_t> bad_clusters;
-    const auto& tri = dual.mesh.triangles;
-    for (size_t f = 0; f < tri.size(); f += 3)
-      if (is_defect[tri[f]] || is_defect[tri[f + 1]] || is_defect[tri[f + 2]])
-        for (int k = 0; k < 3; ++k)
-          if (dual.cluster_of_output_vertex[tri[f + k]] >= 0) bad_clusters.push_back(dual.cluster_of_output_vertex[tri[f + k]]);
-    for (uint32_t v : defects)
-      if (dual.cluster_of_output_vertex[v] >= 0) bad_clusters.push_back(dual.cluster_of_output_vertex[v]);
-    RepairRoundStats round_stats;
-    const std::vector<int32_t> touched = repair_clusters(mesh, items, labels, K, bad_clusters, adjustable, round_stats);
-    for (int32_t c : touched) ever_touched[c] = 1;
-    result.repaired_clusters += touched.size();
-    result.repair_splits += round_stats.splits;
-    result.repair_merges += round_stats.merges;
-    result.repair_islands += round_stats.dissolved_islands;
-    // No relaxation after a repair: on a feature thinner than a cluster the energy minimum is
-    // the defective clustering itself, and relaxing undoes the split (measured on the dragon:
-    // defects do not decrease over rounds with relaxation, and do without).
-    ++result.repair_rounds_used;
-    result.seconds.repair += seconds_since(t);
-  }
-  // The repair leaves its split halves unrelaxed. Relax them once, constrained; keep the result
-  // only if the dual stays free of defects (relaxing may rebuild the thin-feature clusters).
-  if (defects.empty() && result.repair_rounds_used > 0) {
-    t = std::chrono::steady_clock::now();
-    std::vector<int32_t> before = labels;
-    std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
-    run_clustering_loops(mesh, items, labels, sums, true, 0.0, options.clustering.max_loops,
-                         options.clustering.skip_unchanged, result.clustering, ever_touched);
-    DualMesh relaxed = build_dual_mesh(mesh, labels, K, cluster_centroids(items, sums), dual_options, &boundary_loops);
-    if (find_manifold_defects(relaxed.mesh.view()).empty()) {
-      dual = std::move(relaxed);
-      result.final_energy = clustering_energy(items, sums);
-      result.repair_relaxed = true;
-    } else {
-      labels.swap(before);
-    }
-    result.seconds.repair += seconds_since(t);
-  }
+  // Repair the clustering around dual-mesh defects (labels only; re-checks just the changed
+  // region each round), then build the dual once and check it as a whole.
+  DefectRepairOptions repair_options;
+  repair_options.max_rounds = options.repair_rounds;
+  repair_options.boundary_strips = options.boundary_strips;
+  repair_options.relax_max_loops = options.clustering.max_loops;
+  repair_options.skip_unchanged = options.clustering.skip_unchanged;
+  DefectRepairResult repair =
+      repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options, result.clustering);
+  result.repair_rounds_used = repair.rounds;
+  result.repaired_clusters = repair.repaired_clusters;
+  result.repair_splits = repair.splits;
+  result.repair_merges = repair.merges;
+  result.repair_islands = repair.islands;
+  result.repair_relaxed = repair.relaxed;
+  result.seconds.repair = repair.repair_seconds;
+  result.seconds.dual = repair.check_seconds;
+  t = std::chrono::steady_clock::now();
+  std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
+  result.final_energy = clustering_energy(items, sums);
+  DualMesh dual = build_dual_mesh(mesh, labels, K, cluster_centroids(items, sums), dual_options, &boundary_loops);
+  std::vector<uint32_t> defects = find_manifold_defects(dual.mesh.view());
+  result.seconds.dual += seconds_since(t);
   // Final placement (defects do not depend on positions, so it is done once, here).
   if (options.project_to_surface) {
     std::vector<double> z = cluster_centroids(items, accumulate_clusters(items, labels, K));

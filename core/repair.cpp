@@ -278,7 +278,10 @@ class DefectTracker {
   std::vector<int32_t> check_all(std::span<const int32_t> labels) {
     std::fill(in_set_.begin(), in_set_.end(), 1);
     prev_.assign(labels.begin(), labels.end());
-    return check(labels);
+    all_ = true;
+    std::vector<int32_t> bad = check(labels);
+    all_ = false;
+    return bad;
   }
 
   // Re-checks the clusters whose faces may differ from the last check.
@@ -324,7 +327,14 @@ class DefectTracker {
     // Dual faces with a corner in the set, each once (from its first corner in the set).
     std::vector<Triple> faces;
     const uint32_t* T = mesh_.triangles.data();
-    for (uint32_t v = 0; v < V; ++v) {
+    if (all_) {  // every face once, in face order
+      for (uint64_t f = 0; f < mesh_.face_count(); ++f) {
+        const int32_t a = labels[T[3 * f]], b = labels[T[3 * f + 1]], c = labels[T[3 * f + 2]];
+        if (a < 0 || b < 0 || c < 0 || a == b || b == c || a == c) continue;
+        faces.push_back(rotate_smallest_first(uint32_t(a), uint32_t(b), uint32_t(c)));
+      }
+    }
+    for (uint32_t v = 0; v < V && !all_; ++v) {
       const int32_t lv = labels[v];
       if (lv < 0 || !in_set_[lv]) continue;
       for (uint32_t f : mesh_.faces_of(v)) {
@@ -390,6 +400,7 @@ class DefectTracker {
   std::vector<uint8_t> defective_, in_set_;
   std::vector<int32_t> prev_;
   uint64_t defect_vertices_ = 0;
+  bool all_ = false;
 };
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
@@ -417,12 +428,11 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   while (!bad.empty() && result.rounds < options.max_rounds) {
     t = std::chrono::steady_clock::now();
     for (int32_t c : bad) is_bad[c] = 1;
-    for (uint32_t v = 0; v < V; ++v) {
-      if (labels[v] < 0 || near_defect[v]) continue;
-      bool near = is_bad[labels[v]];
-      for (uint32_t n : mesh.neighbours(v)) near |= labels[n] >= 0 && is_bad[labels[n]];
-      near_defect[v] = near;
-    }
+    for (uint32_t v = 0; v < V; ++v)
+      if (labels[v] >= 0 && is_bad[labels[v]]) {
+        near_defect[v] = 1;
+        for (uint32_t n : mesh.neighbours(v)) near_defect[n] = 1;
+      }
     for (int32_t c : bad) is_bad[c] = 0;
     RepairRoundStats stats;
     const std::vector<int32_t> touched = repair_clusters(mesh, items, labels, K, bad, adjustable, stats);

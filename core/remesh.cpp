@@ -105,11 +105,13 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   const BoundaryLoops boundary_loops = find_boundary_loops(mesh);
   DualMeshOptions dual_options;
   dual_options.boundary_strips = options.boundary_strips;
+  // Holes whose loop is shorter than ~2 output edges close instead of getting sliver strips.
+  dual_options.close_hole_perimeter = 2.0 * typical_dual_edge(items.total_area, K);
   // Repair the clustering around dual-mesh defects (labels only; re-checks just the changed
   // region each round), then build the dual once and check it as a whole.
   DefectRepairOptions repair_options;
   repair_options.max_rounds = options.repair_rounds;
-  repair_options.boundary_strips = options.boundary_strips;
+  repair_options.dual = dual_options;
   repair_options.relax_max_loops = options.clustering.max_loops;
   repair_options.skip_unchanged = options.clustering.skip_unchanged;
   DefectRepairResult repair =

@@ -271,8 +271,8 @@ bool vertex_defective(uint32_t x, std::span<const Triple> faces, std::vector<std
 // on the changed vertices' 1-rings (and on boundary loops that changed) are re-checked.
 class DefectTracker {
  public:
-  DefectTracker(const MeshView& mesh, const BoundaryLoops& loops, uint32_t K, bool strips)
-      : mesh_(mesh), loops_(loops), K_(K), strips_(strips), defective_(K, 0), in_set_(K, 0) {}
+  DefectTracker(const MeshView& mesh, const BoundaryLoops& loops, uint32_t K, const DualMeshOptions& options)
+      : mesh_(mesh), loops_(loops), K_(K), strips_(options.boundary_strips), options_(options), defective_(K, 0), in_set_(K, 0) {}
 
   // Checks every cluster. Returns the clusters on and around defects.
   std::vector<int32_t> check_all(std::span<const int32_t> labels) {
@@ -348,7 +348,7 @@ class DefectTracker {
     }
     uint32_t strip_vertices = 0;
     if (strips_) {
-      std::vector<Triple> strip = boundary_strip_faces(mesh_, loops_, labels, K_, size, strip_vertices);
+      std::vector<Triple> strip = boundary_strip_faces(mesh_, loops_, labels, K_, size, options_, strip_vertices);
       faces.insert(faces.end(), strip.begin(), strip.end());
     }
     std::sort(faces.begin(), faces.end());
@@ -397,6 +397,7 @@ class DefectTracker {
   const BoundaryLoops& loops_;
   const uint32_t K_;
   const bool strips_;
+  const DualMeshOptions options_;
   std::vector<uint8_t> defective_, in_set_;
   std::vector<int32_t> prev_;
   uint64_t defect_vertices_ = 0;
@@ -418,7 +419,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   DefectRepairResult result;
   result.touched.assign(K, 0);
   auto t = std::chrono::steady_clock::now();
-  DefectTracker tracker(mesh, loops, K, options.boundary_strips);
+  DefectTracker tracker(mesh, loops, K, options.dual);
   std::vector<int32_t> bad = tracker.check_all(labels);
   result.check_seconds += seconds_since(t);
   // Vertices of the clusters repaired around a defect, and of their neighbours: the region the

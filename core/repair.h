@@ -44,7 +44,7 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
 
 struct DefectRepairOptions {
   uint32_t max_rounds = 12;     ///< repair rounds at most
-  bool boundary_strips = true;  ///< check the dual with its §VI-D strips (as it will be built)
+  DualMeshOptions dual;         ///< the dual as it will be built (strips, closed holes)
   bool relax = true;            ///< relax the repaired clustering once at the end (kept only if valid)
   uint32_t relax_max_loops = 2000;
   bool skip_unchanged = true;   ///< the modified-clusters skip during the relaxation

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <numeric>
 
 namespace streamcvd {
@@ -100,7 +101,7 @@ namespace {
 // (p, p_next, b). Loops meeting fewer than three clusters close instead.
 void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
                          std::span<const uint32_t> output_of_cluster, std::span<const uint32_t> cluster_size,
-                         DualMesh& dual, std::vector<Triple>& faces) {
+                         const DualMeshOptions& options, DualMesh& dual, std::vector<Triple>& faces) {
   const float* P = mesh.positions.data();
   dual.loops_skipped = loops.skipped;
   for (size_t l = 0; l + 1 < loops.offsets.size(); ++l) {
@@ -135,6 +136,39 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
     bool all_single = changes.size() == loop.size();
     for (uint32_t k = 0; all_single && k < loop.size(); ++k) all_single = cluster_size[labels[loop[k]]] == 1;
     if (all_single) continue;
+    if (options.close_hole_perimeter > 0) {
+      double perimeter = 0;
+      for (size_t k = 0; k < n; ++k) {
+        const float* a = &P[3 * size_t(loop[k])];
+        const float* b = &P[3 * size_t(loop[(k + 1) % n])];
+        double d[3] = {double(b[0]) - a[0], double(b[1]) - a[1], double(b[2]) - a[2]};
+        perimeter += std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      }
+      std::vector<int32_t> ring(changes.size());  // the cluster after each change, in loop order
+      for (size_t t = 0; t < changes.size(); ++t) ring[t] = labels[edge(changes[t]).to];
+      std::vector<int32_t> distinct = ring;
+      std::sort(distinct.begin(), distinct.end());
+      if (perimeter < options.close_hole_perimeter && std::adjacent_find(distinct.begin(), distinct.end()) == distinct.end()) {
+        // Orientation as the strip's (p, b, a): each change a → b contributes the edge b → a.
+        if (ring.size() == 3) {
+          faces.push_back(canonical_rotation(output_of_cluster[ring[0]], output_of_cluster[ring[2]], output_of_cluster[ring[1]]));
+        } else {
+          const uint32_t h = dual.mesh.vertex_count();
+          double c[3] = {0, 0, 0};
+          for (uint32_t v : loop)
+            for (int k = 0; k < 3; ++k) c[k] += P[3 * size_t(v) + k];
+          for (int k = 0; k < 3; ++k) dual.mesh.positions.push_back(float(c[k] / double(n)));
+          dual.cluster_of_output_vertex.push_back(-1);
+          ++dual.boundary_vertices_added;
+          for (size_t t = 0; t < changes.size(); ++t) {
+            const Edge e = edge(changes[t]);
+            faces.push_back(canonical_rotation(h, output_of_cluster[labels[e.to]], output_of_cluster[labels[e.from]]));
+          }
+        }
+        ++dual.holes_closed;
+        continue;
+      }
+    }
     // One strip point per change, except that consecutive changes whose midpoints coincide
     // (coincident input vertices) share one point, so no strip triangle is flat.
     std::vector<std::array<float, 3>> points;
@@ -217,6 +251,26 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
 
 }  // namespace
 
+double typical_dual_edge(double area, uint32_t clusters) {
+  return clusters > 0 && area > 0 ? std::sqrt(4.0 * area / (2.0 * clusters) / std::sqrt(3.0)) : 0.0;
+}
+
+std::vector<Triple> boundary_strip_faces(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
+                                         uint32_t cluster_count, std::span<const uint32_t> cluster_size,
+                                         const DualMeshOptions& options, uint32_t& strip_vertices) {
+  // The strip code reads chord ends back from the output positions: give it a scratch dual
+  // whose first cluster_count vertices stand for the clusters (identity numbering).
+  DualMesh scratch;
+  scratch.mesh.positions.assign(3 * size_t(cluster_count), 0.0f);
+  scratch.cluster_of_output_vertex.assign(cluster_count, 0);
+  std::vector<uint32_t> identity(cluster_count);
+  std::iota(identity.begin(), identity.end(), 0u);
+  std::vector<Triple> faces;
+  add_boundary_strips(mesh, loops, labels, identity, cluster_size, options, scratch, faces);
+  strip_vertices = scratch.mesh.vertex_count() - cluster_count;
+  return faces;
+}
+
 DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count,
                          std::span<const double> cluster_positions, const DualMeshOptions& options,
                          const BoundaryLoops* boundary_loops) {
@@ -241,10 +295,10 @@ DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, 
   }
   if (options.boundary_strips) {
     if (boundary_loops) {
-      add_boundary_strips(mesh, *boundary_loops, labels, output_of_cluster, cluster_size, dual, faces);
+      add_boundary_strips(mesh, *boundary_loops, labels, output_of_cluster, cluster_size, options, dual, faces);
     } else {
       BoundaryLoops loops = find_boundary_loops(mesh);
-      add_boundary_strips(mesh, loops, labels, output_of_cluster, cluster_size, dual, faces);
+      add_boundary_strips(mesh, loops, labels, output_of_cluster, cluster_size, options, dual, faces);
     }
   }
   tbb::parallel_sort(faces.begin(), faces.end());

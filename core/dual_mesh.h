@@ -4,6 +4,7 @@
 // input boundaries so the output boundary follows the input one.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -15,7 +16,15 @@ namespace streamcvd {
 
 struct DualMeshOptions {
   bool boundary_strips = true;  ///< §VI-D: one vertex + two triangles per cluster change along a boundary
+  /// Boundary loops shorter than this (input units), meeting 3 or more clusters each once, are
+  /// holes below the output resolution: they close (one triangle for 3 clusters, else a fan
+  /// from the loop's centroid) instead of getting a strip of slivers. 0 = never.
+  double close_hole_perimeter = 0;
 };
+
+/// A typical output edge length for `clusters` clusters on a surface of area `area`: the side
+/// of the equilateral triangle of area area / (2·clusters) (a closed mesh has 2N faces).
+double typical_dual_edge(double area, uint32_t clusters);
 
 struct DualMesh {
   MeshBuffers mesh;
@@ -46,6 +55,15 @@ BoundaryLoops find_boundary_loops(const MeshView& mesh);
 DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count,
                          std::span<const double> cluster_positions, const DualMeshOptions& options = {},
                          const BoundaryLoops* boundary_loops = nullptr);
+
+/// The labels-only topology of the §VI-D strips, for defect checks that need no positions:
+/// the strip faces of every loop with cluster c as vertex c and the strip vertices numbered
+/// from cluster_count up (`strip_vertices` receives their count). Same faces, up to that
+/// renumbering, as build_dual_mesh adds. O(boundary size). Deterministic.
+std::vector<std::array<uint32_t, 3>> boundary_strip_faces(const MeshView& mesh, const BoundaryLoops& loops,
+                                                          std::span<const int32_t> labels, uint32_t cluster_count,
+                                                          std::span<const uint32_t> cluster_size,
+                                                          const DualMeshOptions& options, uint32_t& strip_vertices);
 
 /// Output vertices involved in a defect of a triangle mesh: non-manifold edges (> 2 faces),
 /// edges used twice in the same direction, vertices whose faces do not form one fan,

@@ -23,6 +23,7 @@ ItemData compute_item_data(const MeshView& mesh, std::span<const float> density)
     for (int c = 0; c < 3; ++c) items.origin[c] = 0.5 * (lo[c] + hi[c]);
   }
   items.weight.assign(V, 0.0);
+  std::vector<double> area(V, 0.0);
   items.centroid.assign(size_t(3) * V, 0.0f);
   const float* P = mesh.positions.data();
   const uint32_t* T = mesh.triangles.data();
@@ -49,6 +50,7 @@ ItemData compute_item_data(const MeshView& mesh, std::span<const float> density)
       double rho = density.empty() ? 1.0 : double(density[v]);
       for (int c = 0; c < 3; ++c) items.centroid[3 * v + c] = float(w > 0 ? g[c] / w : pv[c]);
       items.weight[v] = rho * w;
+      area[v] = w;
     }
   });
   // Fixed-order sums so the totals do not depend on the thread count.
@@ -56,6 +58,7 @@ ItemData compute_item_data(const MeshView& mesh, std::span<const float> density)
     double w = items.weight[v];
     const float* g = &items.centroid[3 * v];
     items.total_weight += w;
+    items.total_area += area[v];
     items.sum_weighted_norm2 += w * (double(g[0]) * g[0] + double(g[1]) * g[1] + double(g[2]) * g[2]);
   }
   return items;

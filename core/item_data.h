@@ -17,6 +17,7 @@ struct ItemData {
   std::vector<double> weight;   ///< M_j = ρ_j · |P_j|, |P_j| = a third of the incident triangle areas
   std::vector<float> centroid;  ///< γ_j − origin, 3 per vertex: centroid of the barycentric dual cell
   double total_weight = 0;      ///< Σ M_j
+  double total_area = 0;        ///< Σ |P_j|: the surface area (ρ not applied)
   double sum_weighted_norm2 = 0;  ///< Σ M_j ‖γ_j‖² (the constant of eq. 13, for reporting E)
   /// Metrics A/AQ: per-vertex tensor T_j (xx, xy, xz, yy, yz, zz); the item tensor of eq. 16
   /// is K_j = M_j·T_j, so the anisotropic energy is area-weighted like the isotropic one.

@@ -195,63 +195,33 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   const BoundaryLoops boundary_loops = find_boundary_loops(mesh);
   DualMeshOptions dual_options;
   dual_options.boundary_strips = options.boundary_strips;
-  DualMesh dual;
-  std::vector<uint32_t> defects;
-  std::vector<uint8_t> ever_touched(K, 0);
-  for (uint32_t round = 0;; ++round) {
-    t = std::chrono::steady_clock::now();
-    dual = build_dual_mesh(mesh, labels, K, metric_sites(items, labels, K, metric, options.clustering.qem_threshold), dual_options, &boundary_loops);
-    defects = find_manifold_defects(dual.mesh.view());
-    result.seconds.dual += seconds_since(t);
-    if (defects.empty() || round == options.repair_rounds) break;
-    // Re-cluster around each defect: its clusters and their neighbours (a ring more each round).
-    t = std::chrono::steady_clock::now();
-    // Strip vertices have no cluster: take the clusters of the faces around them instead.
-    std::vector<uint8_t> is_defect(dual.mesh.vertex_count(), 0);
-    for (uint32_t v : defects) is_defect[v] = 1;
-    std::vector<int32_t> bad_clusters;
-    const auto& tri = dual.mesh.triangles;
-    for (size_t f = 0; f < tri.size(); f += 3)
-      if (is_defect[tri[f]] || is_defect[tri[f + 1]] || is_defect[tri[f + 2]])
-        for (int k = 0; k < 3; ++k)
-          if (dual.cluster_of_output_vertex[tri[f + k]] >= 0) bad_clusters.push_back(dual.cluster_of_output_vertex[tri[f + k]]);
-    for (uint32_t v : defects)
-      if (dual.cluster_of_output_vertex[v] >= 0) bad_clusters.push_back(dual.cluster_of_output_vertex[v]);
-    RepairRoundStats round_stats;
-    const std::vector<int32_t> touched = repair_clusters(mesh, items, labels, K, bad_clusters, adjustable, round_stats);
-    for (int32_t c : touched) ever_touched[c] = 1;
-    result.repaired_clusters += touched.size();
-    result.repair_splits += round_stats.splits;
-    result.repair_merges += round_stats.merges;
-    result.repair_islands += round_stats.dissolved_islands;
-    // No relaxation after a repair: on a feature thinner than a cluster the energy minimum is
-    // the defective clustering itself, and relaxing undoes the split (measured on the dragon:
-    // defects do not decrease over rounds with relaxation, and do without).
-    ++result.repair_rounds_used;
-    result.seconds.repair += seconds_since(t);
-  }
-  // The repair leaves its split halves unrelaxed. Relax them once, constrained; keep the result
-  // only if the dual stays free of defects (relaxing may rebuild the thin-feature clusters).
-  if (defects.empty() && result.repair_rounds_used > 0) {
-    t = std::chrono::steady_clock::now();
-    std::vector<int32_t> before = labels;
-    ClusterState state = make_cluster_state(items, labels, K, metric, options.clustering.qem_threshold);
-    update_site_offsets(state);
-    LoopOptions relax;
-    relax.constrained = true;
-    relax.max_loops = options.clustering.max_loops;
-    relax.skip_unchanged = options.clustering.skip_unchanged;
-    relax.offset_update_loops = options.clustering.offset_update_loops;
-    run_clustering_loops(mesh, items, labels, state, relax, result.clustering, ever_touched);
-    DualMesh relaxed = build_dual_mesh(mesh, labels, K, metric_sites(items, labels, K, metric, options.clustering.qem_threshold), dual_options, &boundary_loops);
-    if (find_manifold_defects(relaxed.mesh.view()).empty()) {
-      dual = std::move(relaxed);
-      result.repair_relaxed = true;
-    } else {
-      labels.swap(before);
-    }
-    result.seconds.repair += seconds_since(t);
-  }
+  // Holes whose loop is shorter than ~2 output edges close instead of getting sliver strips.
+  dual_options.close_hole_perimeter = 2.0 * typical_dual_edge(items.total_area, K);
+  // Repair the clustering around dual-mesh defects (labels only; re-checks just the changed
+  // region each round), then build the dual once and check it as a whole.
+  DefectRepairOptions repair_options;
+  repair_options.max_rounds = options.repair_rounds;
+  repair_options.dual = dual_options;
+  repair_options.relax_max_loops = options.clustering.max_loops;
+  repair_options.skip_unchanged = options.clustering.skip_unchanged;
+  repair_options.metric = metric;
+  repair_options.qem_threshold = options.clustering.qem_threshold;
+  repair_options.offset_update_loops = options.clustering.offset_update_loops;
+  DefectRepairResult repair =
+      repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options, result.clustering);
+  result.repair_rounds_used = repair.rounds;
+  result.repaired_clusters = repair.repaired_clusters;
+  result.repair_splits = repair.splits;
+  result.repair_merges = repair.merges;
+  result.repair_islands = repair.islands;
+  result.repair_relaxed = repair.relaxed;
+  result.seconds.repair = repair.repair_seconds;
+  result.seconds.dual = repair.check_seconds;
+  t = std::chrono::steady_clock::now();
+  DualMesh dual = build_dual_mesh(mesh, labels, K, metric_sites(items, labels, K, metric, options.clustering.qem_threshold),
+                                  dual_options, &boundary_loops);
+  std::vector<uint32_t> defects = find_manifold_defects(dual.mesh.view());
+  result.seconds.dual += seconds_since(t);
   // Final placement (defects do not depend on positions, so it is done once, here). QEM sites
   // already lie on the surface's features; centroids are projected onto the surface.
   {

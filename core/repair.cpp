@@ -1,6 +1,8 @@
 #include "core/repair.h"
 
 #include <algorithm>
+#include <array>
+#include <chrono>
 #include <numeric>
 
 namespace streamcvd {
@@ -203,6 +205,287 @@ std::vector<int32_t> repair_clusters(const MeshView& mesh, const ItemData& items
   std::sort(touched.begin(), touched.end());
   touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
   return touched;
+}
+
+}  // namespace streamcvd
+
+namespace streamcvd {
+
+namespace {
+
+using Triple = std::array<uint32_t, 3>;
+
+inline Triple rotate_smallest_first(uint32_t a, uint32_t b, uint32_t c) {
+  if (a < b && a < c) return {a, b, c};
+  if (b < a && b < c) return {b, c, a};
+  return {c, a, b};
+}
+
+// True when the faces around vertex x (distinct oriented triples, each holding x) are not a
+// manifold neighbourhood: an edge at x in more than two faces or twice in one direction, faces
+// in more than one fan, or two faces on one vertex set. The same tests as
+// find_manifold_defects, restricted to the edges at x (a vertex's corners only join through
+// its own edges).
+bool vertex_defective(uint32_t x, std::span<const Triple> faces, std::vector<std::array<uint32_t, 3>>& entries,
+                      std::vector<uint32_t>& parent, std::vector<Triple>& sets) {
+  entries.clear();  // {neighbour, outgoing?, face}
+  for (uint32_t i = 0; i < faces.size(); ++i) {
+    const Triple& t = faces[i];
+    const int k = t[0] == x ? 0 : t[1] == x ? 1 : 2;
+    entries.push_back({t[(k + 1) % 3], 1, i});  // x → next
+    entries.push_back({t[(k + 2) % 3], 0, i});  // previous → x
+  }
+  std::sort(entries.begin(), entries.end());
+  parent.resize(faces.size());
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto find = [&](uint32_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  uint32_t fans = uint32_t(faces.size());
+  for (size_t i = 0; i < entries.size();) {
+    size_t j = i;
+    uint32_t out = 0;
+    while (j < entries.size() && entries[j][0] == entries[i][0]) out += entries[j++][1];
+    const size_t n = j - i, in = n - out;
+    if (n > 2 || out == 2 || in == 2) return true;
+    if (n == 2) {
+      uint32_t a = find(entries[i][2]), b = find(entries[i + 1][2]);
+      if (a != b) {
+        parent[a] = b;
+        --fans;
+      }
+    }
+    i = j;
+  }
+  if (fans != 1) return true;
+  sets.assign(faces.begin(), faces.end());
+  for (Triple& t : sets) std::sort(t.begin(), t.end());
+  std::sort(sets.begin(), sets.end());
+  return std::adjacent_find(sets.begin(), sets.end()) != sets.end();
+}
+
+// Labels-only defect finder on the dual of a clustering that changes a little at a time.
+// A dual vertex's defect status depends only on the faces around it, and a dual face changes
+// only when a corner of its input triangle changes label: after a change, only the clusters
+// on the changed vertices' 1-rings (and on boundary loops that changed) are re-checked.
+class DefectTracker {
+ public:
+  DefectTracker(const MeshView& mesh, const BoundaryLoops& loops, uint32_t K, const DualMeshOptions& options)
+      : mesh_(mesh), loops_(loops), K_(K), strips_(options.boundary_strips), options_(options), defective_(K, 0), in_set_(K, 0) {}
+
+  // Checks every cluster. Returns the clusters on and around defects.
+  std::vector<int32_t> check_all(std::span<const int32_t> labels) {
+    std::fill(in_set_.begin(), in_set_.end(), 1);
+    prev_.assign(labels.begin(), labels.end());
+    all_ = true;
+    std::vector<int32_t> bad = check(labels);
+    all_ = false;
+    return bad;
+  }
+
+  // Re-checks the clusters whose faces may differ from the last check.
+  std::vector<int32_t> check_changes(std::span<const int32_t> labels) {
+    std::fill(in_set_.begin(), in_set_.end(), 0);
+    for (uint32_t c = 0; c < K_; ++c) in_set_[c] = defective_[c];
+    auto mark = [&](int32_t l) {
+      if (l >= 0) in_set_[l] = 1;
+    };
+    const uint32_t V = mesh_.vertex_count();
+    for (uint32_t v = 0; v < V; ++v) {
+      if (prev_[v] == labels[v]) continue;
+      mark(prev_[v]);
+      mark(labels[v]);
+      for (uint32_t n : mesh_.neighbours(v)) {
+        mark(prev_[n]);
+        mark(labels[n]);
+      }
+    }
+    if (strips_)
+      for (size_t l = 0; l + 1 < loops_.offsets.size(); ++l) {
+        std::span<const uint32_t> loop(loops_.vertices.data() + loops_.offsets[l], loops_.offsets[l + 1] - loops_.offsets[l]);
+        bool changed = false;
+        for (uint32_t v : loop) changed |= prev_[v] != labels[v];
+        if (changed)
+          for (uint32_t v : loop) {
+            mark(prev_[v]);
+            mark(labels[v]);
+          }
+      }
+    std::copy(labels.begin(), labels.end(), prev_.begin());
+    return check(labels);
+  }
+
+  uint64_t defect_vertices() const { return defect_vertices_; }
+
+ private:
+  std::vector<int32_t> check(std::span<const int32_t> labels) {
+    const uint32_t V = mesh_.vertex_count();
+    std::vector<uint32_t> size(K_, 0);
+    for (int32_t l : labels)
+      if (l >= 0) ++size[l];
+    // Dual faces with a corner in the set, each once (from its first corner in the set).
+    std::vector<Triple> faces;
+    const uint32_t* T = mesh_.triangles.data();
+    if (all_) {  // every face once, in face order
+      for (uint64_t f = 0; f < mesh_.face_count(); ++f) {
+        const int32_t a = labels[T[3 * f]], b = labels[T[3 * f + 1]], c = labels[T[3 * f + 2]];
+        if (a < 0 || b < 0 || c < 0 || a == b || b == c || a == c) continue;
+        faces.push_back(rotate_smallest_first(uint32_t(a), uint32_t(b), uint32_t(c)));
+      }
+    }
+    for (uint32_t v = 0; v < V && !all_; ++v) {
+      const int32_t lv = labels[v];
+      if (lv < 0 || !in_set_[lv]) continue;
+      for (uint32_t f : mesh_.faces_of(v)) {
+        const uint32_t* t = T + 3 * size_t(f);
+        const int32_t a = labels[t[0]], b = labels[t[1]], c = labels[t[2]];
+        if (a < 0 || b < 0 || c < 0 || a == b || b == c || a == c) continue;
+        const int first = in_set_[a] ? 0 : in_set_[b] ? 1 : 2;
+        if (t[first] != v) continue;
+        faces.push_back(rotate_smallest_first(uint32_t(a), uint32_t(b), uint32_t(c)));
+      }
+    }
+    uint32_t strip_vertices = 0;
+    if (strips_) {
+      std::vector<Triple> strip = boundary_strip_faces(mesh_, loops_, labels, K_, size, options_, strip_vertices);
+      faces.insert(faces.end(), strip.begin(), strip.end());
+    }
+    std::sort(faces.begin(), faces.end());
+    faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
+    // Faces around each checked vertex (clusters in the set, every strip vertex).
+    std::vector<std::pair<uint32_t, uint32_t>> around;  // {vertex, face}
+    for (uint32_t i = 0; i < faces.size(); ++i)
+      for (uint32_t x : faces[i])
+        if (x >= K_ || in_set_[x]) around.push_back({x, i});
+    std::sort(around.begin(), around.end());
+    std::vector<int32_t> bad;
+    std::vector<Triple> fan, sets;
+    std::vector<std::array<uint32_t, 3>> entries;
+    std::vector<uint32_t> parent;
+    std::vector<uint8_t> has_faces(K_, 0);
+    defect_vertices_ = 0;
+    for (uint32_t c = 0; c < K_; ++c)
+      if (in_set_[c]) defective_[c] = 0;
+    for (size_t i = 0; i < around.size();) {
+      size_t j = i;
+      fan.clear();
+      while (j < around.size() && around[j].first == around[i].first) fan.push_back(faces[around[j++].second]);
+      const uint32_t x = around[i].first;
+      if (x < K_) has_faces[x] = 1;
+      if (vertex_defective(x, fan, entries, parent, sets)) {
+        ++defect_vertices_;
+        if (x < K_) defective_[x] = 1;
+        for (const Triple& t : fan)
+          for (uint32_t y : t)
+            if (y < K_) bad.push_back(int32_t(y));
+      }
+      i = j;
+    }
+    for (uint32_t c = 0; c < K_; ++c)
+      if (in_set_[c] && size[c] > 0 && !has_faces[c]) {  // a cluster on no dual face
+        defective_[c] = 1;
+        ++defect_vertices_;
+        bad.push_back(int32_t(c));
+      }
+    std::sort(bad.begin(), bad.end());
+    bad.erase(std::unique(bad.begin(), bad.end()), bad.end());
+    return bad;
+  }
+
+  const MeshView& mesh_;
+  const BoundaryLoops& loops_;
+  const uint32_t K_;
+  const bool strips_;
+  const DualMeshOptions options_;
+  std::vector<uint8_t> defective_, in_set_;
+  std::vector<int32_t> prev_;
+  uint64_t defect_vertices_ = 0;
+  bool all_ = false;
+};
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                                       uint32_t cluster_count, std::span<const uint8_t> adjustable,
+                                       const BoundaryLoops& loops, const DefectRepairOptions& options,
+                                       ClusteringReport& report) {
+  const uint32_t K = cluster_count;
+  const uint32_t V = mesh.vertex_count();
+  DefectRepairResult result;
+  result.touched.assign(K, 0);
+  auto t = std::chrono::steady_clock::now();
+  DefectTracker tracker(mesh, loops, K, options.dual);
+  std::vector<int32_t> bad = tracker.check_all(labels);
+  result.check_seconds += seconds_since(t);
+  // Vertices of the clusters repaired around a defect, and of their neighbours: the region the
+  // final relaxation leaves alone (relaxing it tends to rebuild the thin-feature clusters).
+  std::vector<uint8_t> near_defect(V, 0);
+  std::vector<uint8_t> is_bad(K, 0);
+  while (!bad.empty() && result.rounds < options.max_rounds) {
+    t = std::chrono::steady_clock::now();
+    for (int32_t c : bad) is_bad[c] = 1;
+    for (uint32_t v = 0; v < V; ++v)
+      if (labels[v] >= 0 && is_bad[labels[v]]) {
+        near_defect[v] = 1;
+        for (uint32_t n : mesh.neighbours(v)) near_defect[n] = 1;
+      }
+    for (int32_t c : bad) is_bad[c] = 0;
+    RepairRoundStats stats;
+    const std::vector<int32_t> touched = repair_clusters(mesh, items, labels, K, bad, adjustable, stats);
+    for (int32_t c : touched) result.touched[c] = 1;
+    result.repaired_clusters += touched.size();
+    result.splits += stats.splits;
+    result.merges += stats.merges;
+    result.islands += stats.dissolved_islands;
+    ++result.rounds;
+    result.repair_seconds += seconds_since(t);
+    t = std::chrono::steady_clock::now();
+    bad = tracker.check_changes(labels);
+    result.check_seconds += seconds_since(t);
+  }
+  result.defect_vertices = tracker.defect_vertices();
+  if (!bad.empty() || result.rounds == 0 || !options.relax) return result;
+  // The repair leaves split halves and merged pairs unrelaxed. Relax the touched clusters once
+  // (constrained) with the clusters around the repaired defects frozen (their vertices hidden
+  // as free, so nothing moves into or out of them): relaxing those rebuilds the thin-feature
+  // clusters (measured on the dragon: an unfrozen relaxation always brought defects back).
+  // The relaxation is kept only when the dual stays defect-free.
+  t = std::chrono::steady_clock::now();
+  const std::vector<int32_t> before(labels.begin(), labels.end());
+  std::vector<uint8_t> active = result.touched;
+  // Whole clusters are frozen, so the 1-ring connectivity test stays exact for the others.
+  std::vector<uint8_t> frozen(K, 0);
+  for (uint32_t v = 0; v < V; ++v)
+    if (near_defect[v] && labels[v] >= 0) frozen[labels[v]] = 1;
+  for (uint32_t v = 0; v < V; ++v)
+    if (labels[v] >= 0 && frozen[labels[v]]) {
+      active[labels[v]] = 0;
+      labels[v] = -1;
+    }
+  ClusterState state = make_cluster_state(items, labels, K, options.metric, options.qem_threshold);
+  update_site_offsets(state);
+  LoopOptions relax;
+  relax.constrained = true;
+  relax.max_loops = options.relax_max_loops;
+  relax.skip_unchanged = options.skip_unchanged;
+  relax.offset_update_loops = options.offset_update_loops;
+  run_clustering_loops(mesh, items, labels, state, relax, report, active);
+  for (uint32_t v = 0; v < V; ++v)
+    if (before[v] >= 0 && frozen[before[v]]) labels[v] = before[v];
+  if (tracker.check_changes(labels).empty()) {
+    result.relaxed = true;
+  } else {
+    std::copy(before.begin(), before.end(), labels.begin());
+    tracker.check_changes(labels);
+  }
+  result.defect_vertices = tracker.defect_vertices();
+  result.repair_seconds += seconds_since(t);
+  return result;
 }
 
 }  // namespace streamcvd

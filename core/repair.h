@@ -11,6 +11,8 @@
 #include <span>
 #include <vector>
 
+#include "core/clustering.h"
+#include "core/dual_mesh.h"
 #include "core/item_data.h"
 #include "core/mesh_view.h"
 
@@ -39,5 +41,38 @@ struct SplitScratch {
 /// new labels used (0: the cluster could not be split). O(cluster size · parts).
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
                        std::span<const int32_t> new_labels, SplitScratch& scratch);
+
+struct DefectRepairOptions {
+  uint32_t max_rounds = 12;     ///< repair rounds at most
+  DualMeshOptions dual;         ///< the dual as it will be built (strips, closed holes)
+  bool relax = true;            ///< relax the repaired clustering once at the end (kept only if valid)
+  uint32_t relax_max_loops = 2000;
+  bool skip_unchanged = true;   ///< the modified-clusters skip during the relaxation
+  Metric metric = Metric::I;    ///< energy of the relaxation (ClusteringOptions)
+  double qem_threshold = 1e-2;
+  uint32_t offset_update_loops = 5;
+};
+
+struct DefectRepairResult {
+  uint32_t rounds = 0;                  ///< repair rounds run
+  uint64_t repaired_clusters = 0;       ///< Σ over rounds of the clusters each round changed
+  uint64_t splits = 0, merges = 0, islands = 0;
+  bool relaxed = false;                 ///< a relaxation of the repaired region was kept
+  uint64_t defect_vertices = 0;         ///< dual vertices still on a defect at the end
+  std::vector<uint8_t> touched;         ///< per cluster: 1 when the repair changed it
+  double check_seconds = 0, repair_seconds = 0;
+};
+
+/// The repair loop: finds the clusters on and around dual-mesh defects (same defects as
+/// find_manifold_defects on the built dual, strips included), repairs them (repair_clusters),
+/// and re-checks only the dual around the vertices whose label changed, until no defect is left
+/// or max_rounds. Then relaxes the repaired clusters (constrained pass), keeping the relaxation
+/// only if the dual stays defect-free. Labels only: the dual's topology does not depend on
+/// vertex positions. First check O(V + F); each further round O(V) plus the changed region.
+/// Deterministic. Appends the relaxation loops to `report`.
+DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                                       uint32_t cluster_count, std::span<const uint8_t> adjustable,
+                                       const BoundaryLoops& loops, const DefectRepairOptions& options,
+                                       ClusteringReport& report);
 
 }  // namespace streamcvd

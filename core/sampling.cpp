@@ -1,6 +1,7 @@
 // Component budget and initial sampling (paper §VI-G).
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 #include <random>
@@ -179,16 +180,32 @@ std::vector<int32_t> initial_sampling(const MeshView& mesh, const ItemData& item
   // Seeds are drawn in proportion to weight (a weighted random order: key −ln(u)/M_j, the
   // exponential race), so that a region gets clusters by its area·density, not by how finely
   // it happens to be sampled (paper Fig. 5). Weightless vertices come last.
+  // The key is ordered by its float bits (positive floats sort like their bit patterns), with
+  // ties in vertex order: a stable LSD radix sort on two 16-bit digits, O(V).
   std::vector<uint32_t> order(V);
-  std::iota(order.begin(), order.end(), 0u);
   {
     std::mt19937_64 rng(seed);
-    std::vector<double> key(V);
+    std::vector<uint32_t> key(V), tmp_key(V), tmp_order(V);
     for (uint32_t v = 0; v < V; ++v) {
       double u = (double(rng() >> 11) + 0.5) * 0x1.0p-53;  // uniform in (0, 1)
-      key[v] = items.weight[v] > 0 ? -std::log(u) / items.weight[v] : std::numeric_limits<double>::infinity();
+      float k = items.weight[v] > 0 ? float(-std::log(u) / items.weight[v]) : std::numeric_limits<float>::infinity();
+      uint32_t bits;
+      std::memcpy(&bits, &k, sizeof bits);
+      key[v] = bits;
+      order[v] = v;
     }
-    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key[a] != key[b] ? key[a] < key[b] : a < b; });
+    for (int shift = 0; shift < 32; shift += 16) {
+      std::vector<uint32_t> start(65537, 0);
+      for (uint32_t v = 0; v < V; ++v) ++start[((key[v] >> shift) & 0xFFFF) + 1];
+      std::partial_sum(start.begin(), start.end(), start.begin());
+      for (uint32_t i = 0; i < V; ++i) {
+        uint32_t slot = start[(key[i] >> shift) & 0xFFFF]++;
+        tmp_key[slot] = key[i];
+        tmp_order[slot] = order[i];
+      }
+      key.swap(tmp_key);
+      order.swap(tmp_order);
+    }
   }
 
   int32_t next_label = 0;

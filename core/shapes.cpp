@@ -70,6 +70,79 @@ MeshBuffers make_torus(int rings, int segments, float R, float r) {
   return m;
 }
 
+MeshBuffers make_ellipsoid(int level, float ax, float ay, float az) {
+  MeshBuffers m = make_icosphere(level, 1.0f);
+  for (size_t i = 0; i < m.positions.size(); i += 3) {
+    m.positions[i] *= ax;
+    m.positions[i + 1] *= ay;
+    m.positions[i + 2] *= az;
+  }
+  if (ax * ay * az < 0)  // a mirror flips the orientation
+    for (size_t f = 0; f < m.triangles.size(); f += 3) std::swap(m.triangles[f + 1], m.triangles[f + 2]);
+  return m;
+}
+
+MeshBuffers make_capsule(int segments, float radius, float length) {
+  segments = std::max(segments, 3);
+  const double r = radius, half = 0.5 * double(length), quarter = 0.5 * M_PI * r;
+  const double profile = 2 * quarter + double(length);  // arc length from pole to pole
+  // Ring spacing = the height of an equilateral triangle on the segment chord.
+  const double chord = 2 * M_PI * r / segments;
+  const int rows = std::max(1, int(std::lround(profile / (chord * std::sqrt(3.0) / 2))) - 1);
+  MeshBuffers m;
+  m.positions.insert(m.positions.end(), {0.0f, 0.0f, float(-half - r)});  // south pole: vertex 0
+  for (int i = 1; i <= rows; ++i) {
+    const double s = profile * i / (rows + 1);
+    double rho = r, z = 0;
+    if (s < quarter) {
+      rho = r * std::sin(s / r);
+      z = -half - r * std::cos(s / r);
+    } else if (s > profile - quarter) {
+      rho = r * std::sin((profile - s) / r);
+      z = half + r * std::cos((profile - s) / r);
+    } else {
+      z = -half + (s - quarter);
+    }
+    for (int j = 0; j < segments; ++j) {
+      const double a = 2 * M_PI * (j + 0.5 * (i % 2)) / segments;
+      m.positions.insert(m.positions.end(), {float(rho * std::cos(a)), float(rho * std::sin(a)), float(z)});
+    }
+  }
+  const uint32_t north = uint32_t(m.positions.size() / 3);
+  m.positions.insert(m.positions.end(), {0.0f, 0.0f, float(half + r)});
+  auto ring = [&](int i, int j) { return uint32_t(1 + (i - 1) * segments + ((j % segments) + segments) % segments); };
+  // Orients each triangle away from the capsule's axis segment (the shape is convex).
+  auto add = [&](uint32_t a, uint32_t b, uint32_t c) {
+    const float* P = m.positions.data();
+    double e1[3], e2[3], g[3];
+    for (int k = 0; k < 3; ++k) {
+      e1[k] = double(P[3 * b + k]) - P[3 * a + k];
+      e2[k] = double(P[3 * c + k]) - P[3 * a + k];
+      g[k] = (double(P[3 * a + k]) + P[3 * b + k] + P[3 * c + k]) / 3;
+    }
+    g[2] -= std::clamp(g[2], -half, half);
+    const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    if (n[0] * g[0] + n[1] * g[1] + n[2] * g[2] < 0) std::swap(b, c);
+    m.triangles.insert(m.triangles.end(), {a, b, c});
+  };
+  for (int j = 0; j < segments; ++j) {
+    add(0, ring(1, j), ring(1, j + 1));
+    add(north, ring(rows, j), ring(rows, j + 1));
+  }
+  // Ring i+1 is turned by +half a segment from ring i when i is even, −half when i is odd.
+  for (int i = 1; i < rows; ++i)
+    for (int j = 0; j < segments; ++j) {
+      if (i % 2 == 0) {
+        add(ring(i, j), ring(i, j + 1), ring(i + 1, j));
+        add(ring(i + 1, j), ring(i, j + 1), ring(i + 1, j + 1));
+      } else {
+        add(ring(i, j), ring(i, j + 1), ring(i + 1, j + 1));
+        add(ring(i, j), ring(i + 1, j + 1), ring(i + 1, j));
+      }
+    }
+  return m;
+}
+
 MeshBuffers make_grid(int nx, int ny, float sx, float sy) {
   MeshBuffers m;
   for (int j = 0; j < ny; ++j)

@@ -94,23 +94,39 @@ double triangle_quality(const float* a, const float* b, const float* c) {
 // Returns the number of sites reverted.
 uint64_t revert_needle_sites(DualMesh& dual, std::vector<double>& z, std::span<const double> fallback) {
   constexpr double kNeedleQuality = 1e-4;
+  constexpr int kMaxPasses = 9;
   uint64_t reverted = 0;
   std::vector<uint8_t> done(z.size() / 3, 0);
-  for (int pass = 0; pass < 3; ++pass) {
+  auto moved2 = [&](int32_t c) {
+    double d2 = 0;
+    for (int i = 0; i < 3; ++i) d2 += (z[3 * size_t(c) + i] - fallback[3 * size_t(c) + i]) * (z[3 * size_t(c) + i] - fallback[3 * size_t(c) + i]);
+    return d2;
+  };
+  for (int pass = 0; pass < kMaxPasses; ++pass) {
     bool changed = false;
     const auto& tri = dual.mesh.triangles;
     const float* P = dual.mesh.positions.data();
     for (size_t f = 0; f < tri.size(); f += 3) {
       if (triangle_quality(P + 3 * size_t(tri[f]), P + 3 * size_t(tri[f + 1]), P + 3 * size_t(tri[f + 2])) >= kNeedleQuality)
         continue;
+      // Revert one site per needle and pass: the one that moved least from its fallback (a crease
+      // point before a corner), so a corner is kept whenever a crease neighbour can give way.
+      int32_t pick = -1;
+      double least = std::numeric_limits<double>::infinity();
       for (int k = 0; k < 3; ++k) {
         const int32_t c = dual.cluster_of_output_vertex[tri[f + k]];
         if (c < 0 || done[c]) continue;
-        done[c] = 1;
-        changed = true;
-        ++reverted;
-        for (int i = 0; i < 3; ++i) z[3 * size_t(c) + i] = fallback[3 * size_t(c) + i];
+        const double d2 = moved2(c);
+        if (d2 < least) {
+          least = d2;
+          pick = c;
+        }
       }
+      if (pick < 0) continue;
+      done[pick] = 1;
+      changed = true;
+      ++reverted;
+      for (int i = 0; i < 3; ++i) z[3 * size_t(pick) + i] = fallback[3 * size_t(pick) + i];
     }
     if (!changed) break;
     place_output_vertices(dual, z);

@@ -4,6 +4,7 @@
 #include "core/curvature.h"
 #include "core/metric_field.h"
 #include "core/errors.h"
+#include "core/lloyd.h"
 #include "core/repair.h"
 
 #include <algorithm>
@@ -183,7 +184,9 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   result.seconds.sampling = seconds_since(t);
 
   t = std::chrono::steady_clock::now();
-  result.clustering = minimize_clustering(mesh, items, labels, K, options.clustering);
+  const bool lloyd = options.clustering.algorithm == ClusteringOptions::Algorithm::Lloyd;
+  result.clustering = lloyd ? lloyd_clustering(mesh, items, labels, K, lloyd_options(options.clustering))
+                            : minimize_clustering(mesh, items, labels, K, options.clustering);
   result.seconds.clustering = seconds_since(t);
 
   // Compensating merges/splits of the repair stay in components with many clusters.
@@ -232,7 +235,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   }
   // The repair leaves its split halves unrelaxed. Relax them once, constrained; keep the result
   // only if the dual stays free of defects (relaxing may rebuild the thin-feature clusters).
-  if (defects.empty() && result.repair_rounds_used > 0) {
+  if (defects.empty() && result.repair_rounds_used > 0 && !lloyd) {  // Lloyd's report stays pure Lloyd
     t = std::chrono::steady_clock::now();
     std::vector<int32_t> before = labels;
     ClusterState state = make_cluster_state(items, labels, K, metric, options.clustering.qem_threshold);

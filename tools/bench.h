@@ -13,7 +13,7 @@ namespace streamcvd::cli {
 std::string bench_markdown(const nlohmann::json& records);
 
 /// SVG: clustering energy against time, one polyline per CVD or Lloyd run (dashed), log-log;
-/// energies divided by the lowest energy any run of the same case reached (so the curves of a
+/// energies divided by the lowest final energy of the runs of the same case (so the curves of a
 /// case compare, paper Fig. 9), time cumulative over the passes.
 std::string energy_svg(const nlohmann::json& records);
 

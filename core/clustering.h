@@ -47,6 +47,10 @@ std::vector<int32_t> initial_sampling(const MeshView& mesh, const ItemData& item
                                       uint64_t seed);
 
 struct ClusteringOptions {
+  enum class Algorithm : uint8_t { Cvd, Lloyd };
+  Algorithm algorithm = Algorithm::Cvd;  ///< Cvd: Algorithm 1; Lloyd: the §VII baseline (core/lloyd.h, I/IQ only)
+  uint32_t lloyd_max_iterations = 100;   ///< Lloyd: iteration bound (it need not converge)
+  double lloyd_time_limit = 0;           ///< Lloyd: seconds, 0 = no limit
   Metric metric = Metric::I;       ///< energy (items must carry tensors for A/AQ, quadrics for IQ/AQ)
   double near_convergence = 1e-3;  ///< stop the unconstrained pass when < this fraction of items moved
   uint32_t max_loops = 2000;       ///< safety bound on loops per pass

@@ -4,6 +4,7 @@
 #include "core/curvature.h"
 #include "core/metric_field.h"
 #include "core/errors.h"
+#include "core/lloyd.h"
 #include "core/repair.h"
 
 #include <algorithm>
@@ -199,7 +200,9 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   result.seconds.sampling = seconds_since(t);
 
   t = std::chrono::steady_clock::now();
-  result.clustering = minimize_clustering(mesh, items, labels, K, options.clustering);
+  const bool lloyd = options.clustering.algorithm == ClusteringOptions::Algorithm::Lloyd;
+  result.clustering = lloyd ? lloyd_clustering(mesh, items, labels, K, lloyd_options(options.clustering))
+                            : minimize_clustering(mesh, items, labels, K, options.clustering);
   result.seconds.clustering = seconds_since(t);
 
   // Compensating merges/splits of the repair stay in components with many clusters.
@@ -223,6 +226,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   repair_options.metric = metric;
   repair_options.qem_threshold = options.clustering.qem_threshold;
   repair_options.offset_update_loops = options.clustering.offset_update_loops;
+  repair_options.relax = !lloyd;  // a Lloyd run's report stays pure Lloyd
   DefectRepairResult repair =
       repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options, result.clustering);
   result.repair_rounds_used = repair.rounds;

@@ -197,6 +197,51 @@ TEST(Bench, TinySuiteRunsEndToEndAndRepeats) {
   fs::remove_all(dir);
 }
 
+TEST(Bench, LloydBaselineRunsBesideCvdAndIsPlotted) {
+  ASSERT_TRUE(test::cli_available()) << "STREAMCVD_CLI not built";
+  const fs::path dir = test::temp_dir("bench_lloyd");
+  fs::create_directories(dir / "meshes");
+  write_sphere(dir / "meshes", "sphere.ply", 3, 1.0f);
+  const fs::path suite = dir / "lloyd.json";
+  std::ofstream(suite) << R"({"defaults": {"seed": 3, "threads": 1, "distance_samples": 2000, "render_size": "80x60",
+                                          "algorithms": ["cvd", "lloyd"]},
+    "cases": [{"name": "sphere_I", "mesh": "meshes/sphere.ply", "N": 100, "metric": "I"},
+              {"name": "sphere_IQ", "mesh": "meshes/sphere.ply", "N": 100, "metric": "IQ", "lloyd_max_iterations": 7}]})";
+  const json results = run_tiny_suite(suite, dir / "out");
+  ASSERT_TRUE(results.contains("records"));
+  const json& records = results["records"];
+  ASSERT_EQ(records.size(), 4u);
+  for (size_t i = 0; i < 4; ++i) {
+    const json& r = records[i];
+    SCOPED_TRACE(r.dump().substr(0, 400));
+    ASSERT_EQ(r["status"], "ok");
+    EXPECT_EQ(r["algorithm"], i % 2 == 0 ? "cvd" : "lloyd");
+    EXPECT_EQ(r["metric"], i < 2 ? "I" : "IQ");
+    EXPECT_EQ(r["output"]["vertices"], 100);
+    EXPECT_TRUE(r["output"]["closed_manifold"].get<bool>());
+    ASSERT_GT(r["energy_per_loop"].size(), 0u);
+    EXPECT_EQ(r["energy_per_loop"].size(), r["seconds_per_loop"].size());
+    const auto& t = r["seconds_per_loop"];
+    for (size_t k = 1; k < t.size(); ++k) EXPECT_GE(t[k].get<double>(), t[k - 1].get<double>()) << "time is cumulative";
+  }
+  EXPECT_EQ(records[1]["loops"]["constrained"], 0);
+  for (size_t i = 0; i < 4; ++i)
+    EXPECT_EQ(records[i]["energy_per_loop"].size(),
+              records[i]["loops"]["unconstrained"].get<size_t>() + records[i]["loops"]["constrained"].get<size_t>());
+  EXPECT_LE(records[3]["loops"]["unconstrained"].get<int>(), 7);
+  // Paper §VII: Algorithm 1 ends at least as low as Lloyd (1% slack for a different local minimum).
+  for (size_t i : {0, 2})
+    EXPECT_GE(records[i + 1]["clustering_energy"].get<double>(), 0.99 * records[i]["clustering_energy"].get<double>()) << i;
+  for (const char* name : {"sphere_I_energy.svg", "sphere_IQ_energy.svg"}) {
+    const std::string svg = test::slurp((dir / "out" / "plots" / name).string());
+    size_t lines = 0;
+    for (size_t at = svg.find("<polyline"); at != std::string::npos; at = svg.find("<polyline", at + 1)) ++lines;
+    EXPECT_EQ(lines, 2u) << name;
+    EXPECT_NE(svg.find("stroke-dasharray"), std::string::npos) << name << ": the Lloyd curve is dashed";
+  }
+  fs::remove_all(dir);
+}
+
 TEST(Bench, BadSuitesAreRejectedNamingTheFile) {
   ASSERT_TRUE(test::cli_available()) << "STREAMCVD_CLI not built";
   const fs::path dir = test::temp_dir("bench_bad_suite");
@@ -204,7 +249,8 @@ TEST(Bench, BadSuitesAreRejectedNamingTheFile) {
       {"syntax.json", "{\"cases\": [ {\"mesh\": \"a.ply\", "},
       {"nocases.json", "{\"cases\": []}"},
       {"metric.json", R"({"cases": [{"mesh": "a.ply", "N": 10, "metric": "K"}]})"},
-      {"algorithm.json", R"({"cases": [{"mesh": "a.ply", "N": 10, "algorithms": ["lloyd"]}]})"},
+      {"algorithm.json", R"({"cases": [{"mesh": "a.ply", "N": 10, "algorithms": ["kmeans"]}]})"},
+      {"lloyd_aniso.json", R"({"cases": [{"mesh": "a.ply", "N": 10, "metric": "AQ", "algorithms": ["lloyd"]}]})"},
       {"zero.json", R"({"cases": [{"mesh": "a.ply", "N": 0}]})"},
   };
   for (const auto& [name, text] : suites) {

@@ -12,8 +12,9 @@ namespace streamcvd::cli {
 /// bbox diagonal). Skipped and failed runs get a row saying so.
 std::string bench_markdown(const nlohmann::json& records);
 
-/// SVG: clustering energy against time, one polyline per CVD run (log-log; energy divided by its
-/// last-loop value, time cumulative over the unconstrained and constrained passes).
+/// SVG: clustering energy against time, one polyline per CVD or Lloyd run (dashed), log-log;
+/// energies divided by the lowest final energy of the runs of the same case (so the curves of a
+/// case compare, paper Fig. 9), time cumulative over the passes.
 std::string energy_svg(const nlohmann::json& records);
 
 /// SVG: histograms of triangle quality Q (20 bins over [0,1]) and of the smallest angle (12 bins

@@ -9,14 +9,16 @@
 //                                 "qem_prevent_flips": true},
 //    "cases": [{"name": "bunny_5k", "mesh": "../data/bun_zipper.ply", "N": 5000, ...any default...},
 //              {"mesh": "a.ply", "N": 100, "algorithm": "cvd"}]}   ("algorithm": one of "algorithms")
-// Algorithms: "cvd" (remesh_path, the case's metric) and "openmesh-qem" (OpenMesh quadric decimater, to
-// the vertex count of the case's CVD output when CVD ran first, else to N); a later Lloyd
-// baseline plugs in as one more name in kAlgorithms and one more branch in run_row().
+// Algorithms: "cvd" (remesh_path, Algorithm 1 under the case's metric), "lloyd" (remesh_path with
+// the Lloyd relaxation baseline of paper §VII, metrics I and IQ) and "openmesh-qem" (OpenMesh
+// quadric decimater, to the vertex count of the case's CVD output when CVD ran first, else to N).
+// Optional per case: "lloyd_max_iterations" (default 100), "lloyd_time_limit" (seconds, 0 = none).
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <csignal>
 #include <cstdlib>
@@ -48,7 +50,7 @@ namespace {
 using json = nlohmann::json;
 namespace fs = std::filesystem;
 
-const std::set<std::string> kAlgorithms = {"cvd", "openmesh-qem"};
+const std::set<std::string> kAlgorithms = {"cvd", "lloyd", "openmesh-qem"};
 
 struct BenchCase {
   std::string name, mesh, mesh_path;
@@ -61,6 +63,8 @@ struct BenchCase {
   RenderOptions render;
   unsigned timeout_seconds = 3600;
   bool qem_prevent_flips = true;  // openmesh-qem: add ModNormalFlippingT
+  uint32_t lloyd_max_iterations = ClusteringOptions{}.lloyd_max_iterations;
+  double lloyd_time_limit = 0;
 };
 
 // Characters safe in file names; anything else becomes '_'.
@@ -107,13 +111,14 @@ std::vector<BenchCase> parse_suite(const std::string& suite_path, json& suite) {
       if (threads < 0 || threads > 4096) throw InputError("threads must be within 0..4096 (0: all cores)");
       bc.threads = uint32_t(threads);
       bc.metric = field<std::string>(c, defaults, "metric", bc.metric);
-      Metric parsed;
-      if (!parse_metric(bc.metric, parsed)) throw InputError("unknown metric '" + bc.metric + "' (I, IQ, A, AQ)");
+      Metric metric;
+      if (!parse_metric(bc.metric, metric)) throw InputError("unknown metric '" + bc.metric + "' (I, IQ, A, AQ)");
       bc.algorithms = field<std::vector<std::string>>(c, defaults, "algorithms", bc.algorithms);
       if (c.contains("algorithm")) bc.algorithms = {c["algorithm"].get<std::string>()};  // one row only
       if (bc.algorithms.empty()) throw InputError("\"algorithms\" is empty");
       for (const std::string& a : bc.algorithms)
-        if (!kAlgorithms.count(a)) throw InputError("unknown algorithm '" + a + "' (cvd, openmesh-qem)");
+        if (!kAlgorithms.count(a)) throw InputError("unknown algorithm '" + a + "' (cvd, lloyd, openmesh-qem)");
+        else if (a == "lloyd" && is_anisotropic(metric)) throw InputError("lloyd: only the metrics I and IQ");
       bc.distance_samples = field<uint64_t>(c, defaults, "distance_samples", bc.distance_samples);
       if (bc.distance_samples > kMaxDistanceSamples) throw InputError("distance_samples above 100000000");
       parse_size(field<std::string>(c, defaults, "render_size", "640x640"), bc.render);
@@ -123,6 +128,8 @@ std::vector<BenchCase> parse_suite(const std::string& suite_path, json& suite) {
       bc.render.wireframe = true;
       bc.timeout_seconds = field<unsigned>(c, defaults, "timeout_seconds", bc.timeout_seconds);
       bc.qem_prevent_flips = field<bool>(c, defaults, "qem_prevent_flips", bc.qem_prevent_flips);
+      bc.lloyd_max_iterations = field<uint32_t>(c, defaults, "lloyd_max_iterations", bc.lloyd_max_iterations);
+      bc.lloyd_time_limit = field<double>(c, defaults, "lloyd_time_limit", bc.lloyd_time_limit);
       cases.push_back(std::move(bc));
     }
   } catch (const json::exception& e) {
@@ -133,14 +140,22 @@ std::vector<BenchCase> parse_suite(const std::string& suite_path, json& suite) {
   return cases;
 }
 
-// Loop energies and cumulative times: the constrained pass restarts its clock, so its times are
-// offset by the end of the unconstrained pass.
+// Loop energies and cumulative times: every pass of minimize_clustering restarts its clock (I
+// then QEM sites for IQ, then the constrained pass), so a pass's times are offset by the end of
+// the previous one, detected as a clock that went backwards. Lloyd is one pass. The loops that
+// remesh() appends after a repair (a relaxation of the repaired clusters) are left out: the
+// series is the clustering algorithm's own (paper Fig. 9), ending at cr.final_energy.
 void loop_series(const ClusteringReport& cr, json& record) {
-  std::vector<double> t = cr.seconds_per_loop;
-  for (size_t i = cr.unconstrained_loops; i < t.size() && cr.unconstrained_loops > 0; ++i)
-    t[i] += cr.seconds_per_loop[cr.unconstrained_loops - 1];
-  record["energy_per_loop"] = cr.energy_per_loop;
+  const size_t loops = std::min(cr.seconds_per_loop.size(), size_t(cr.unconstrained_loops) + cr.constrained_loops);
+  std::vector<double> t(cr.seconds_per_loop.begin(), cr.seconds_per_loop.begin() + loops);
+  double offset = 0;
+  for (size_t i = 1; i < t.size(); ++i) {
+    if (cr.seconds_per_loop[i] < cr.seconds_per_loop[i - 1]) offset = t[i - 1];
+    t[i] += offset;
+  }
+  record["energy_per_loop"] = std::vector<double>(cr.energy_per_loop.begin(), cr.energy_per_loop.begin() + loops);
   record["seconds_per_loop"] = t;
+  record["clustering_energy"] = cr.final_energy;  // before the repair; Lloyd: its best iterate
 }
 
 struct RowPaths {
@@ -153,11 +168,14 @@ json run_row(const BenchCase& c, const std::string& algorithm, uint32_t target, 
   json r;
   MeshBuffers output;
   double t0 = now_seconds();
-  if (algorithm == "cvd") {
+  if (algorithm == "cvd" || algorithm == "lloyd") {
     PipelineOptions options;
     options.remesh.vertices = c.vertices;
     options.remesh.seed = c.seed;
-    parse_metric(c.metric, options.remesh.clustering.metric);
+    parse_metric(c.metric, options.remesh.clustering.metric);  // validated by parse_suite
+    if (algorithm == "lloyd") options.remesh.clustering.algorithm = ClusteringOptions::Algorithm::Lloyd;
+    options.remesh.clustering.lloyd_max_iterations = c.lloyd_max_iterations;
+    options.remesh.clustering.lloyd_time_limit = c.lloyd_time_limit;
     PipelineResult p = remesh_path(c.mesh_path, options);
     const double total = now_seconds() - t0;
     const RemeshResult& rm = p.remesh;
@@ -174,7 +192,7 @@ json run_row(const BenchCase& c, const std::string& algorithm, uint32_t target, 
     r["defect_vertices"] = rm.defect_vertices;
     loop_series(rm.clustering, r);
     output = std::move(p.remesh.mesh);
-  } else {  // "openmesh-qem"; a Lloyd baseline would be one more branch here
+  } else {  // "openmesh-qem"
     LoadedMesh input = load_mesh_or_store(c.mesh_path);
     const double load = now_seconds() - t0;
     QemReport q;
@@ -377,6 +395,10 @@ void add_bench_command(CLI::App& app) {
       json rows = json::array();
       for (const json& r : records)
         if (r["case"] == c.name && r["status"] == "ok") rows.push_back(r);
+      // Energy against time of the case's clustering algorithms side by side (paper Fig. 9).
+      if (std::count(c.algorithms.begin(), c.algorithms.end(), "cvd") +
+              std::count(c.algorithms.begin(), c.algorithms.end(), "lloyd") >= 2)
+        write_file_atomic((out / "plots" / (c.name + "_energy.svg")).string(), energy_svg(rows));
       if (!rows.empty())
         write_file_atomic((out / "plots" / (c.name + "_histograms.svg")).string(),
                           histogram_svg(c.name + ": triangle quality and smallest angle", rows));

@@ -20,7 +20,7 @@ void print_quality(const QualityStats& q);
 namespace {
 
 struct RemeshArgs {
-  std::string input, output, report, subdivide = "auto", small_components = "keep", metric = "IQ";
+  std::string input, output, report, subdivide = "auto", small_components = "keep", metric = "IQ", algorithm = "cvd";
   double gradation = 0, qem_threshold = ClusteringOptions{}.qem_threshold;
   uint32_t vertices = 10000;
   uint32_t threads = 0;
@@ -90,6 +90,11 @@ void add_remesh_command(CLI::App& app) {
                   "features), A anisotropic (curvature tensors), AQ anisotropic with QEM placement")
       ->capture_default_str()
       ->transform(CLI::IsMember({"I", "IQ", "A", "AQ"}, CLI::ignore_case));
+  cmd->add_option("--algorithm", args->algorithm,
+                  "Clustering algorithm: cvd (Algorithm 1 of the paper) or lloyd (Lloyd relaxation baseline of "
+                  "§VII, metrics I and IQ only)")
+      ->capture_default_str()
+      ->transform(CLI::IsMember({"cvd", "lloyd"}, CLI::ignore_case));
   cmd->add_option("--gradation", args->gradation,
                   "Curvature-adapted density, eq. 20: rho = area * |curvature|^gamma (0 = uniform); with A/AQ it "
                   "only shapes the initial sampling")
@@ -115,6 +120,11 @@ void add_remesh_command(CLI::App& app) {
     options.remesh.seed = args->seed;
     if (!parse_metric(args->metric, options.remesh.clustering.metric))
       throw InputError("--metric: expected I, IQ, A or AQ, got '" + args->metric + "'");
+    if (args->algorithm == "lloyd") {
+      if (is_anisotropic(options.remesh.clustering.metric))
+        throw InputError("--algorithm lloyd: only the metrics I and IQ are implemented, got " + args->metric);
+      options.remesh.clustering.algorithm = ClusteringOptions::Algorithm::Lloyd;
+    }
     options.remesh.gradation = args->gradation;
     options.remesh.clustering.qem_threshold = args->qem_threshold;
     options.remesh.boundary_strips = !args->no_strips;
@@ -174,6 +184,7 @@ void add_remesh_command(CLI::App& app) {
                       {"threads", args->threads},
                       {"seed", args->seed},
                       {"metric", metric_name(rm.clustering.metric)},
+                      {"algorithm", args->algorithm},
                       {"gradation", args->gradation},
                       {"qem_threshold", args->qem_threshold},
                       {"subdivide", args->subdivide},

@@ -20,6 +20,9 @@
 #include <limits>
 #include <numeric>
 #include <type_traits>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
 
 #include "core/adjacency.h"
 #include "core/errors.h"
@@ -34,6 +37,7 @@ static_assert(std::is_trivially_copyable_v<StoreHeader> && sizeof(StoreHeader) =
               "StoreHeader is an on-disk record");
 
 namespace {
+struct StageTimer { std::chrono::steady_clock::time_point t=std::chrono::steady_clock::now(); bool on=std::getenv("STREAMCVD_STAGES")!=nullptr; void mark(const char* n){ if(!on) return; auto u=std::chrono::steady_clock::now(); std::fprintf(stderr,"  %-12s %.3f s\n",n,std::chrono::duration<double>(u-t).count()); t=u;} };
 
 constexpr uint32_t kStoreVersion = 1;
 constexpr const char* kHeaderFile = "header.bin";
@@ -341,8 +345,10 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
   const uint64_t f_count = soup.face_count();
   MeshStore store;
   Impl& s = *store.impl_;
+  StageTimer tm;
   Bbox box = bounding_box(soup.positions, 0, v_count);
   box.finish();
+  tm.mark("check+bbox");
 
   // 1. Vertex order (Hilbert curve), its inverse, positions in the new order.
   s.original_ids.resize(v_count);
@@ -350,6 +356,7 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
     hilbert_order(soup.positions, box, s.original_ids);
   else
     std::iota(s.original_ids.begin(), s.original_ids.end(), 0u);
+  tm.mark("hilbert");
   std::vector<uint32_t> owned;
   {
     std::vector<uint32_t> new_of_old(v_count);
@@ -361,16 +368,21 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
         for (int k = 0; k < 3; ++k) s.positions[3 * size_t(i) + k] = soup.positions[3 * size_t(old) + k];
       }
     });
+    tm.mark("permute");
     // 2. Faces remapped and sorted by owner.
     sort_faces_by_owner(soup.triangles, new_of_old, owned, s.triangles);
   }
+  tm.mark("faces");
   if (consumed) *consumed = MeshBuffers{};  // `soup` views it: not used past this point
+  tm.mark("free");
 
   // 3. Adjacency and flags.
   build_vertex_face_adjacency(s.triangles, v_count, s.vf_offsets, s.vertex_face);
+  tm.mark("vf");
   s.flags.resize(v_count);
   build_vertex_vertex_adjacency(s.triangles, s.vf_offsets, s.vertex_face, s.vv_offsets, s.vertex_vertex, s.flags);
 
+  tm.mark("vv+flags");
   // 4. Chunks.
   s.chunks = cut_chunks(owned, options.faces_per_chunk);
   std::vector<uint32_t>().swap(owned);
@@ -380,6 +392,7 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
     for (size_t c = r.begin(); c != r.end(); ++c) chunk_extras(s.view, s.chunks[c], scratch.local());
   });
 
+  tm.mark("chunks");
   StoreHeader& h = s.header;
   h.version = kStoreVersion;
   h.chunk_count = uint32_t(s.chunks.size());
@@ -399,16 +412,25 @@ void MeshStore::write(const std::string& directory) const {
     throw OutputError(
         error_at(directory, "cannot create store directory" + (ec ? ": " + ec.message() : std::string())));
   // Invalidate an older store first: until the new header lands, the directory is not a store.
+  // The removal is made durable before any array is replaced, so that after a crash an old
+  // header never describes new arrays.
   const std::string header_path = directory + "/" + kHeaderFile;
   if (::unlink(header_path.c_str()) != 0 && errno != ENOENT)
     throw OutputError(error_at(header_path, std::string("cannot remove old header: ") + std::strerror(errno)));
+  sync_directory(directory);
+  // Arrays: written past the page cache and fdatasynced, two files at a time (one per core), all
+  // durable before any is renamed; one folder fsync for all renames; the header last. One sync
+  // phase instead of a file + folder fsync per array: the write costs about what the disk needs.
   const std::vector<ArrayFile> files = array_files(impl_->header);
   const std::vector<std::span<const std::byte>> arrays = impl_->array_bytes();
-  for (size_t i = 0; i < files.size(); ++i) {
-    AtomicOutputFile out(directory + "/" + files[i].name);
-    out.write(arrays[i].data(), arrays[i].size());
-    out.commit();
-  }
+  std::vector<std::unique_ptr<AtomicOutputFile>> outs(files.size());
+  tbb::parallel_for(size_t(0), files.size(), [&](size_t i) {
+    outs[i] = std::make_unique<AtomicOutputFile>(directory + "/" + files[i].name);
+    outs[i]->write_direct(arrays[i].data(), arrays[i].size());
+    outs[i]->sync();
+  });
+  for (auto& out : outs) out->commit(/*sync_folder=*/false);
+  sync_directory(directory);
   AtomicOutputFile out(header_path);
   out.write(&impl_->header, sizeof(StoreHeader));
   out.commit();

@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <type_traits>
 #include <chrono>
 #include <cstdio>
@@ -29,6 +30,7 @@
 #include "core/hilbert.h"
 #include "streaming/mesh_io.h"
 #include "streaming/output_file.h"
+#include "streaming/store_writer.h"
 
 namespace streamcvd {
 
@@ -360,17 +362,31 @@ MeshStore::MeshStore(MeshStore&&) noexcept = default;
 MeshStore& MeshStore::operator=(MeshStore&&) noexcept = default;
 
 MeshStore MeshStore::build(const TriangleSoupView& soup, const StoreBuildOptions& options) {
-  return build_from(soup, options, nullptr);
+  return build_from(soup, options, nullptr, nullptr);
 }
 
 MeshStore MeshStore::build(MeshBuffers&& soup, const StoreBuildOptions& options) {
   MeshBuffers owned = std::move(soup);
-  return build_from(owned.view(), options, &owned);
+  return build_from(owned.view(), options, &owned, nullptr);
 }
 
-MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOptions& options, MeshBuffers* consumed) {
+MeshStore MeshStore::build_and_write(MeshBuffers&& soup, const std::string& directory,
+                                     const StoreBuildOptions& options) {
+  MeshBuffers owned = std::move(soup);
+  return build_from(owned.view(), options, &owned, &directory);
+}
+
+MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOptions& options, MeshBuffers* consumed,
+                                const std::string* directory) {
   check_soup(soup);
   if (options.faces_per_chunk == 0) throw InputError("store build: faces_per_chunk must be positive");
+  // Writing while building: each array is handed to the writer thread as soon as it is final.
+  // Created only after the input checks, since it removes an older store's header.
+  std::optional<StoreDirectoryWriter> writer;
+  if (directory) writer.emplace(*directory, /*background=*/true);
+  auto hand_over = [&](const char* name, const auto& array) {
+    if (writer) writer->add(name, std::as_bytes(std::span(array)));
+  };
   const uint32_t v_count = soup.vertex_count();
   const uint64_t f_count = soup.face_count();
   MeshStore store;
@@ -399,21 +415,29 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
       }
     });
     tm.mark("permute");
+    hand_over("positions.f32", s.positions);
+    hand_over("original_ids.u32", s.original_ids);
     // 2. Faces remapped and sorted by owner.
     sort_faces_by_owner(soup.triangles, new_of_old, owned, s.triangles);
   }
   tm.mark("faces");
+  hand_over("triangles.u32", s.triangles);
   if (consumed) *consumed = MeshBuffers{};  // `soup` views it: not used past this point
   tm.mark("free");
 
   // 3. Adjacency and flags.
   build_vertex_face_adjacency(s.triangles, v_count, s.vf_offsets, s.vertex_face);
   tm.mark("vf");
+  hand_over("vf_offsets.u64", s.vf_offsets);
+  hand_over("vf.u32", s.vertex_face);
   s.flags.resize(v_count);
   tm.mark("flags alloc");
   build_vertex_vertex_adjacency(s.triangles, s.vf_offsets, s.vertex_face, s.vv_offsets, s.vertex_vertex, s.flags);
 
   tm.mark("vv+flags");
+  hand_over("vv_offsets.u64", s.vv_offsets);
+  hand_over("vv.u32", s.vertex_vertex);
+  hand_over("flags.u8", s.flags);
   // 4. Chunks.
   s.chunks = cut_chunks(owned, options.faces_per_chunk);
   std::vector<uint32_t>().swap(owned);
@@ -433,38 +457,20 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
   h.vertex_face_count = s.vertex_face.size();
   std::copy(box.lo, box.lo + 3, h.bbox_min);
   std::copy(box.hi, box.hi + 3, h.bbox_max);
+  if (writer) {
+    hand_over("chunks.bin", s.chunks);
+    writer->finish(kHeaderFile, std::as_bytes(std::span(&h, 1)));
+  }
+  tm.mark("write wait");
   return store;
 }
 
 void MeshStore::write(const std::string& directory) const {
-  std::error_code ec;
-  std::filesystem::create_directories(directory, ec);
-  if (ec || !std::filesystem::is_directory(directory))
-    throw OutputError(
-        error_at(directory, "cannot create store directory" + (ec ? ": " + ec.message() : std::string())));
-  // Invalidate an older store first: until the new header lands, the directory is not a store.
-  // The removal is made durable before any array is replaced, so that after a crash an old
-  // header never describes new arrays.
-  const std::string header_path = directory + "/" + kHeaderFile;
-  if (::unlink(header_path.c_str()) != 0 && errno != ENOENT)
-    throw OutputError(error_at(header_path, std::string("cannot remove old header: ") + std::strerror(errno)));
-  sync_directory(directory);
-  // Arrays: written past the page cache and fdatasynced, two files at a time (one per core), all
-  // durable before any is renamed; one folder fsync for all renames; the header last. One sync
-  // phase instead of a file + folder fsync per array: the write costs about what the disk needs.
+  StoreDirectoryWriter writer(directory, /*background=*/false);
   const std::vector<ArrayFile> files = array_files(impl_->header);
   const std::vector<std::span<const std::byte>> arrays = impl_->array_bytes();
-  std::vector<std::unique_ptr<AtomicOutputFile>> outs(files.size());
-  tbb::parallel_for(size_t(0), files.size(), [&](size_t i) {
-    outs[i] = std::make_unique<AtomicOutputFile>(directory + "/" + files[i].name);
-    outs[i]->write_direct(arrays[i].data(), arrays[i].size());
-    outs[i]->sync();
-  });
-  for (auto& out : outs) out->commit(/*sync_folder=*/false);
-  sync_directory(directory);
-  AtomicOutputFile out(header_path);
-  out.write(&impl_->header, sizeof(StoreHeader));
-  out.commit();
+  for (size_t i = 0; i < files.size(); ++i) writer.add(files[i].name, arrays[i]);
+  writer.finish(kHeaderFile, std::as_bytes(std::span(&impl_->header, 1)));
 }
 
 MeshStore MeshStore::open(const std::string& directory) {

@@ -14,7 +14,6 @@ namespace streamcvd {
 namespace {
 
 constexpr size_t kVertexGrain = 2048;
-constexpr uint32_t kRingBlock = 4096;  // vertices per ring buffer of build_vertex_vertex_adjacency
 
 // Valences are small (~6): insertion sort beats std::sort there; big fans fall back to it.
 template <typename T>
@@ -39,21 +38,6 @@ void inclusive_prefix_sum(std::span<uint64_t> a) {
     sum += x;
     x = sum;
   }
-}
-
-// Appends v's distinct neighbours, ascending, to `out`: the vertices other than v of each face
-// around v. Faces listed twice in vf(v) (degenerate) are visited once.
-void gather_ring(std::span<const uint32_t> triangles, std::span<const uint32_t> faces, uint32_t v,
-                 std::vector<uint32_t>& out) {
-  const size_t start = out.size();
-  for (size_t k = 0; k < faces.size(); ++k) {
-    if (k > 0 && faces[k] == faces[k - 1]) continue;
-    const uint32_t* t = &triangles[3 * size_t(faces[k])];
-    for (int c = 0; c < 3; ++c)
-      if (t[c] != v) out.push_back(t[c]);
-  }
-  sort_small(out.data() + start, out.data() + out.size());
-  out.erase(std::unique(out.begin() + ptrdiff_t(start), out.end()), out.end());
 }
 
 // Splits [0, n) into `parts` nearly equal ranges; part p is [range_begin(n, parts, p), range_begin(n, parts, p + 1)).
@@ -88,29 +72,33 @@ uint32_t find_root(std::vector<uint32_t>& parent, uint32_t x) {
 constexpr size_t kMaxSimpleFan = 16;
 
 bool simple_fan(std::span<const uint32_t> triangles, std::span<const uint32_t> faces, uint32_t v, uint8_t& flags,
-                std::vector<uint32_t>* ring) {
+                uint32_t& ring_size, uint32_t* ring) {
   const size_t k = faces.size();
   if (k == 0 || k > kMaxSimpleFan) return false;
   uint32_t a[kMaxSimpleFan + 1], b[kMaxSimpleFan];  // a also receives the open end's b
+  bool bad = false;
   for (size_t i = 0; i < k; ++i) {
     const uint32_t* t = &triangles[3 * size_t(faces[i])];
-    const int c = t[0] == v ? 0 : t[1] == v ? 1 : 2;
-    a[i] = t[(c + 1) % 3];
-    b[i] = t[(c + 2) % 3];
-    if (a[i] == v || b[i] == v || a[i] == b[i]) return false;  // degenerate (also a face listed twice)
+    const uint32_t t0 = t[0], t1 = t[1], t2 = t[2];
+    // Rotate v first without branches: which corner holds v is unpredictable.
+    const bool c0 = t0 == v, c1 = t1 == v;
+    a[i] = c0 ? t1 : c1 ? t2 : t0;
+    b[i] = c0 ? t2 : c1 ? t0 : t1;
+    bad |= (a[i] == v) | (b[i] == v) | (a[i] == b[i]);  // degenerate (also a face listed twice)
   }
   for (size_t i = 0; i < k; ++i)
-    for (size_t j = i + 1; j < k; ++j)
-      if (a[i] == a[j] || b[i] == b[j]) return false;
+    for (size_t j = i + 1; j < k; ++j) bad |= (a[i] == a[j]) | (b[i] == b[j]);
+  if (bad) return false;
   // next[i]: the face after i around v (its a is i's b), or k at an open end.
   uint8_t next[kMaxSimpleFan];
   size_t open_ends = 0, start = 0;
   bool is_next_of_some[kMaxSimpleFan] = {};
   for (size_t i = 0; i < k; ++i) {
-    next[i] = uint8_t(k);
-    for (size_t j = 0; j < k; ++j)
-      if (a[j] == b[i]) next[i] = uint8_t(j), is_next_of_some[j] = true;
-    open_ends += next[i] == k;
+    uint8_t n = uint8_t(k);
+    for (size_t j = 0; j < k; ++j) n = a[j] == b[i] ? uint8_t(j) : n;  // a_j distinct: at most one
+    next[i] = n;
+    if (n < k) is_next_of_some[n] = true;
+    open_ends += n == k;
   }
   if (open_ends > 1) return false;
   if (open_ends == 1)
@@ -122,23 +110,24 @@ bool simple_fan(std::span<const uint32_t> triangles, std::span<const uint32_t> f
   }
   if (visited != k) return false;
   flags = open_ends ? kVertexBoundary : 0;
+  ring_size = uint32_t(k + open_ends);  // the a_i, plus the open end's b
   if (ring) {
-    size_t n = k;
     if (open_ends)
       for (size_t i = 0; i < k; ++i)
-        if (next[i] == k) a[n++] = b[i];
-    sort_small(a, a + n);
-    ring->insert(ring->end(), a, a + n);
+        if (next[i] == k) a[k] = b[i];
+    sort_small(a, a + ring_size);
+    std::copy(a, a + ring_size, ring);
   }
   return true;
 }
 
-// VertexFlag bits of v; with `ring` non-null also writes v's sorted distinct neighbours there
-// (the same edge sort yields both, so the fused pass saves one sort per vertex).
+// VertexFlag bits of v and its number of distinct neighbours; with `ring` non-null also writes
+// them there, ascending (the same edge sort yields all three).
 uint8_t vertex_flags(std::span<const uint32_t> triangles, std::span<const uint32_t> faces, uint32_t v, FanScratch& s,
-                     std::vector<uint32_t>* ring = nullptr) {
+                     uint32_t& ring_size, uint32_t* ring = nullptr) {
+  ring_size = 0;
   if (faces.empty()) return kVertexIsolated;
-  if (uint8_t flags = 0; simple_fan(triangles, faces, v, flags, ring)) return flags;
+  if (uint8_t flags = 0; simple_fan(triangles, faces, v, flags, ring_size, ring)) return flags;
   s.edges.clear();
   uint32_t local = 0;
   for (size_t k = 0; k < faces.size(); ++k) {
@@ -159,7 +148,8 @@ uint8_t vertex_flags(std::span<const uint32_t> triangles, std::span<const uint32
     size_t j = i + 1;
     while (j < s.edges.size() && (s.edges[j] >> 32) == (s.edges[i] >> 32)) ++j;
     const size_t count = j - i;  // faces on edge {v, u}
-    if (ring) ring->push_back(uint32_t(s.edges[i] >> 32));
+    if (ring) ring[ring_size] = uint32_t(s.edges[i] >> 32);
+    ++ring_size;
     if (count == 1) flags |= kVertexBoundary;
     if (count > 2) flags |= kVertexNonManifold;
     const uint32_t first = uint32_t(s.edges[i]);
@@ -211,37 +201,32 @@ void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::spa
   assert(flags.empty() || flags.size() + 1 == vf_offsets.size());
   const uint32_t vertex_count = uint32_t(vf_offsets.size() - 1);
   auto faces_of = [&](uint32_t v) { return vertex_face.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]); };
-  // One pass: each fixed block of vertices computes its rings (and flags) into its own buffer and
-  // records their sizes; after the prefix sum the buffers are copied into place. Costs a copy of
-  // vv instead of a second ring computation per vertex. Fixed blocks: thread-count independent.
-  const uint32_t blocks = (vertex_count + kRingBlock - 1) / kRingBlock;
-  std::vector<std::vector<uint32_t>> rings(blocks);
+  // Pass 1: flags and ring sizes; pass 2: the rings, straight into place. The common vertex takes
+  // simple_fan's path, whose size pass needs no sort: cheaper in time and memory than buffering
+  // the rings of pass 1 and copying them.
   offsets.assign(size_t(vertex_count) + 1, 0);
   tbb::enumerable_thread_specific<FanScratch> fans;
-  tbb::parallel_for(uint32_t(0), blocks, [&](uint32_t b) {
-    const uint32_t lo = b * kRingBlock, hi = std::min(vertex_count, lo + kRingBlock);
-    std::vector<uint32_t>& out = rings[b];
-    const size_t incidences = size_t(vf_offsets[hi] - vf_offsets[lo]);  // = ring sizes on a closed manifold
-    out.reserve(incidences + incidences / 8 + 16);
-    FanScratch& s = fans.local();
-    for (uint32_t v = lo; v < hi; ++v) {
-      const size_t before = out.size();
-      if (flags.empty())
-        gather_ring(triangles, faces_of(v), v, out);
-      else
-        flags[v] = vertex_flags(triangles, faces_of(v), v, s, &out);
-      offsets[size_t(v) + 1] = out.size() - before;
-    }
-  });
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, vertex_count, kVertexGrain),
+                    [&](const tbb::blocked_range<uint32_t>& r) {
+                      FanScratch& s = fans.local();
+                      for (uint32_t v = r.begin(); v != r.end(); ++v) {
+                        uint32_t size = 0;
+                        const uint8_t f = vertex_flags(triangles, faces_of(v), v, s, size);
+                        if (!flags.empty()) flags[v] = f;
+                        offsets[size_t(v) + 1] = size;
+                      }
+                    });
   inclusive_prefix_sum(offsets);
-  // Appended in order, each buffer freed once copied: the buffers and the result never coexist
-  // in full (peak memory + one block, not + the size of vv). Memory-bound, so serial costs little.
-  neighbours.clear();
-  neighbours.reserve(offsets.back());
-  for (std::vector<uint32_t>& ring : rings) {
-    neighbours.insert(neighbours.end(), ring.begin(), ring.end());
-    std::vector<uint32_t>().swap(ring);
-  }
+  neighbours.resize(offsets.back());
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, vertex_count, kVertexGrain),
+                    [&](const tbb::blocked_range<uint32_t>& r) {
+                      FanScratch& s = fans.local();
+                      for (uint32_t v = r.begin(); v != r.end(); ++v) {
+                        uint32_t size = 0;
+                        vertex_flags(triangles, faces_of(v), v, s, size, neighbours.data() + offsets[v]);
+                        assert(size == offsets[size_t(v) + 1] - offsets[v]);
+                      }
+                    });
 }
 
 void compute_vertex_flags(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
@@ -251,9 +236,11 @@ void compute_vertex_flags(std::span<const uint32_t> triangles, std::span<const u
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(flags.size()), kVertexGrain),
                     [&](const tbb::blocked_range<uint32_t>& r) {
                       FanScratch& s = scratch.local();
+                      uint32_t size = 0;
                       for (uint32_t v = r.begin(); v != r.end(); ++v)
                         flags[v] = vertex_flags(
-                            triangles, vertex_face.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]), v, s);
+                            triangles, vertex_face.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]), v, s,
+                            size);
                     });
 }
 

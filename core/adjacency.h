@@ -20,10 +20,9 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
 
 /// CSR vertex→vertex from the triangles and their vertex→face CSR: the neighbours of v (vertices
 /// sharing a face with v, v itself excluded) in ascending order, each once. The result is
-/// symmetric. One pass over each vertex's faces into per-block buffers, then one copy:
-/// O(F · log(valence)) time, transient memory ≈ the size of `neighbours`.
-/// With a non-empty `flags` (V entries) the same pass also computes compute_vertex_flags' result
-/// (one edge sort per vertex yields both).
+/// symmetric. Two passes (sizes, then rings in place) over each vertex's faces:
+/// O(F · log(valence)) time, no memory beyond the output. With a non-empty `flags` (V entries)
+/// the first pass also stores compute_vertex_flags' result (it computes it anyway).
 void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
                                    std::span<const uint32_t> vertex_face, std::vector<uint64_t>& offsets,
                                    std::vector<uint32_t>& neighbours, std::span<uint8_t> flags = {});

@@ -1,6 +1,7 @@
 #include "streaming/output_file.h"
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/types.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -11,7 +12,6 @@
 #include <cerrno>
 #include <chrono>
 #include <csignal>
-#include <cstdlib>
 #include <cstring>
 #include <mutex>
 #include <stdexcept>
@@ -25,7 +25,7 @@ namespace {
 constexpr size_t kBufferSize = size_t(4) << 20;
 constexpr size_t kZstdOutSize = size_t(1) << 20;
 constexpr size_t kDirectAlign = 4096;               // O_DIRECT alignment of memory, offsets and sizes
-constexpr size_t kDirectBlock = size_t(8) << 20;    // bounce buffer: large requests, still cache-friendly
+constexpr size_t kDirectBlock = size_t(2) << 20;    // bounce buffer: requests large enough for full speed
 constexpr size_t kDirectMin = size_t(1) << 20;      // smaller writes are not worth the bypass
 constexpr size_t kMaxNameInTemp = 200;  // keeps ".<name>.tmp.<pid>.<16 hex>" under NAME_MAX
 
@@ -296,10 +296,13 @@ void AtomicOutputFile::write_direct(const void* data, size_t n) {
   const int plain = ::fcntl(fd_, F_GETFL);
   if (flushed_ % kDirectAlign != 0 || plain < 0 || ::fcntl(fd_, F_SETFL, plain | O_DIRECT) != 0)
     return write(data, n);
-  struct FreeBuffer {
-    void operator()(char* p) const { std::free(p); }
+  // Mapped, not malloc'ed: page-aligned, and returned to the system at once (a freed malloc
+  // block of this size may stay resident in a thread's arena and add to the peak RSS).
+  struct Unmap {
+    void operator()(char* p) const { ::munmap(p, kDirectBlock); }
   };
-  std::unique_ptr<char, FreeBuffer> bounce(static_cast<char*>(std::aligned_alloc(kDirectAlign, kDirectBlock)));
+  void* mapped = ::mmap(nullptr, kDirectBlock, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  std::unique_ptr<char, Unmap> bounce(mapped == MAP_FAILED ? nullptr : static_cast<char*>(mapped));
   const char* p = static_cast<const char*>(data);
   size_t left = n;
   bool padded = false;

@@ -41,7 +41,7 @@ static_assert(std::is_trivially_copyable_v<StoreHeader> && sizeof(StoreHeader) =
 namespace {
 struct StageTimer { std::chrono::steady_clock::time_point t=std::chrono::steady_clock::now(); double c=cpu(); bool on=std::getenv("STREAMCVD_STAGES")!=nullptr;
   static double cpu(){ timespec ts; clock_gettime(CLOCK_PROCESS_CPUTIME_ID,&ts); return ts.tv_sec+1e-9*ts.tv_nsec; }
-  void mark(const char* n){ if(!on) return; auto u=std::chrono::steady_clock::now(); double cc=cpu(); std::fprintf(stderr,"  %-12s %.3f s wall %.3f s cpu\n",n,std::chrono::duration<double>(u-t).count(), cc-c); t=u; c=cc;} };
+  void mark(const char* n){ if(!on) return; auto u=std::chrono::steady_clock::now(); double cc=cpu(); long rss=0,hwm=0; if(FILE* f=std::fopen("/proc/self/status","r")){char line[256]; while(std::fgets(line,256,f)){ std::sscanf(line,"VmRSS: %ld",&rss); std::sscanf(line,"VmHWM: %ld",&hwm);} std::fclose(f);} std::fprintf(stderr,"  %-12s %.3f s wall %.3f s cpu rss %ld MB hwm %ld MB\n",n,std::chrono::duration<double>(u-t).count(), cc-c, rss/1024, hwm/1024); t=u; c=cc;} };
 
 constexpr uint32_t kStoreVersion = 1;
 constexpr const char* kHeaderFile = "header.bin";
@@ -159,7 +159,9 @@ void hilbert_order(std::span<const float> positions, const Bbox& box, std::vecto
   };
   const uint32_t n = uint32_t(order.size());
   std::vector<uint64_t> keys(n);
+  StageTimer ht;
   hilbert_keys(positions, make_hilbert_grid(box.lo, box.hi), keys);
+  ht.mark(" h.keys");
   int levels = 1;  // octree levels of the bucket index: 8^levels ≈ n/2 buckets, at most 2^21
   while (levels < 7 && (uint64_t(1) << (3 * levels)) < n / 2) ++levels;
   const int shift = 3 * kHilbertBits - 3 * levels;
@@ -168,10 +170,12 @@ void hilbert_order(std::span<const float> positions, const Bbox& box, std::vecto
   counting_sort(
       n, uint32_t(1) << (3 * levels), [&](uint64_t v) { return uint32_t(keys[v] >> shift); }, start,
       [&](uint64_t v, uint32_t at) { sorted[at] = {keys[v], uint32_t(v)}; });
+  ht.mark(" h.count");
   std::vector<uint64_t>().swap(keys);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, start.size() - 1, 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t b = r.begin(); b != r.end(); ++b) std::sort(sorted.begin() + start[b], sorted.begin() + start[b + 1]);
   });
+  ht.mark(" h.sort");
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, n, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
     for (uint32_t i = r.begin(); i != r.end(); ++i) order[i] = sorted[i].id;
   });

@@ -42,12 +42,12 @@ size_t temp_files_in(const fs::path& dir) {
   return n;
 }
 
-// Sizes around the 8 MiB bounce block and the 4 KiB alignment, from an unaligned source pointer,
+// Sizes around the 2 MiB bounce block and the 4 KiB alignment, from an unaligned source pointer,
 // mixed with ordinary writes before (misaligned offset: fallback) and after (offset past a
 // truncated padded tail).
 TEST(AtomicOutputFileDirect, LargeUnalignedBlocksMixedWithBufferedWrites) {
   const fs::path dir = test::temp_dir("direct_mixed");
-  for (size_t big : {size_t(1) << 20, (size_t(8) << 20) + 4097, (size_t(17) << 20) + 5}) {
+  for (size_t big : {size_t(1) << 20, (size_t(2) << 20) + 4097, (size_t(5) << 20) + 5}) {
     SCOPED_TRACE(big);
     const std::vector<char> a = pattern(big + 1, 1), b = pattern(big, 2), c = pattern(100, 3);
     std::vector<char> expect;

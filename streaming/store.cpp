@@ -21,9 +21,6 @@
 #include <numeric>
 #include <optional>
 #include <type_traits>
-#include <chrono>
-#include <cstdio>
-#include <cstdlib>
 
 #include "core/adjacency.h"
 #include "core/errors.h"
@@ -39,10 +36,6 @@ static_assert(std::is_trivially_copyable_v<StoreHeader> && sizeof(StoreHeader) =
               "StoreHeader is an on-disk record");
 
 namespace {
-struct StageTimer { std::chrono::steady_clock::time_point t=std::chrono::steady_clock::now(); double c=cpu(); bool on=std::getenv("STREAMCVD_STAGES")!=nullptr;
-  static double cpu(){ timespec ts; clock_gettime(CLOCK_PROCESS_CPUTIME_ID,&ts); return ts.tv_sec+1e-9*ts.tv_nsec; }
-  void mark(const char* n){ if(!on) return; auto u=std::chrono::steady_clock::now(); double cc=cpu(); long rss=0,hwm=0; if(FILE* f=std::fopen("/proc/self/status","r")){char line[256]; while(std::fgets(line,256,f)){ std::sscanf(line,"VmRSS: %ld",&rss); std::sscanf(line,"VmHWM: %ld",&hwm);} std::fclose(f);} std::fprintf(stderr,"  %-12s %.3f s wall %.3f s cpu rss %ld MB hwm %ld MB\n",n,std::chrono::duration<double>(u-t).count(), cc-c, rss/1024, hwm/1024); t=u; c=cc;} };
-
 constexpr uint32_t kStoreVersion = 1;
 constexpr const char* kHeaderFile = "header.bin";
 constexpr size_t kGrain = 1 << 14;
@@ -159,9 +152,7 @@ void hilbert_order(std::span<const float> positions, const Bbox& box, std::vecto
   };
   const uint32_t n = uint32_t(order.size());
   std::vector<uint64_t> keys(n);
-  StageTimer ht;
   hilbert_keys(positions, make_hilbert_grid(box.lo, box.hi), keys);
-  ht.mark(" h.keys");
   int levels = 1;  // octree levels of the bucket index: 8^levels ≈ n/2 buckets, at most 2^21
   while (levels < 7 && (uint64_t(1) << (3 * levels)) < n / 2) ++levels;
   const int shift = 3 * kHilbertBits - 3 * levels;
@@ -170,12 +161,10 @@ void hilbert_order(std::span<const float> positions, const Bbox& box, std::vecto
   counting_sort(
       n, uint32_t(1) << (3 * levels), [&](uint64_t v) { return uint32_t(keys[v] >> shift); }, start,
       [&](uint64_t v, uint32_t at) { sorted[at] = {keys[v], uint32_t(v)}; });
-  ht.mark(" h.count");
   std::vector<uint64_t>().swap(keys);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, start.size() - 1, 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t b = r.begin(); b != r.end(); ++b) std::sort(sorted.begin() + start[b], sorted.begin() + start[b + 1]);
   });
-  ht.mark(" h.sort");
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, n, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
     for (uint32_t i = r.begin(); i != r.end(); ++i) order[i] = sorted[i].id;
   });
@@ -395,10 +384,8 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
   const uint64_t f_count = soup.face_count();
   MeshStore store;
   Impl& s = *store.impl_;
-  StageTimer tm;
   Bbox box = bounding_box(soup.positions, 0, v_count);
   box.finish();
-  tm.mark("check+bbox");
 
   // 1. Vertex order (Hilbert curve), its inverse, positions in the new order.
   s.original_ids.resize(v_count);
@@ -406,7 +393,6 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
     hilbert_order(soup.positions, box, s.original_ids);
   else
     std::iota(s.original_ids.begin(), s.original_ids.end(), 0u);
-  tm.mark("hilbert");
   std::vector<uint32_t> owned;
   {
     std::vector<uint32_t> new_of_old(v_count);
@@ -418,30 +404,24 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
         for (int k = 0; k < 3; ++k) s.positions[3 * size_t(i) + k] = soup.positions[3 * size_t(old) + k];
       }
     });
-    tm.mark("permute");
     hand_over("positions.f32", s.positions);
     hand_over("original_ids.u32", s.original_ids);
     // 2. Faces remapped and sorted by owner.
     sort_faces_by_owner(soup.triangles, new_of_old, owned, s.triangles);
   }
-  tm.mark("faces");
   hand_over("triangles.u32", s.triangles);
   if (consumed) *consumed = MeshBuffers{};  // `soup` views it: not used past this point
-  tm.mark("free");
 
   // 3. Adjacency and flags.
   build_vertex_face_adjacency(s.triangles, v_count, s.vf_offsets, s.vertex_face);
-  tm.mark("vf");
   hand_over("vf_offsets.u64", s.vf_offsets);
   hand_over("vf.u32", s.vertex_face);
   s.flags.resize(v_count);
-  tm.mark("flags alloc");
   build_vertex_vertex_adjacency(s.triangles, s.vf_offsets, s.vertex_face, s.vv_offsets, s.vertex_vertex, s.flags);
-
-  tm.mark("vv+flags");
   hand_over("vv_offsets.u64", s.vv_offsets);
   hand_over("vv.u32", s.vertex_vertex);
   hand_over("flags.u8", s.flags);
+
   // 4. Chunks.
   s.chunks = cut_chunks(owned, options.faces_per_chunk);
   std::vector<uint32_t>().swap(owned);
@@ -451,7 +431,6 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
     for (size_t c = r.begin(); c != r.end(); ++c) chunk_extras(s.view, s.chunks[c], scratch.local());
   });
 
-  tm.mark("chunks");
   StoreHeader& h = s.header;
   h.version = kStoreVersion;
   h.chunk_count = uint32_t(s.chunks.size());
@@ -465,7 +444,6 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
     hand_over("chunks.bin", s.chunks);
     writer->finish(kHeaderFile, std::as_bytes(std::span(&h, 1)));
   }
-  tm.mark("write wait");
   return store;
 }
 

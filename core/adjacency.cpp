@@ -3,9 +3,9 @@
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cassert>
 
 #include "core/mesh_view.h"
@@ -40,19 +40,14 @@ void inclusive_prefix_sum(std::span<uint64_t> a) {
   }
 }
 
-// The distinct vertices other than v of each face around v, appended to `out` (v's neighbours,
-// with repeats across faces). Faces listed twice in vf(v) (degenerate) are visited once.
-void gather_ring(std::span<const uint32_t> triangles, std::span<const uint32_t> faces, uint32_t v,
-                 std::vector<uint32_t>& out) {
-  out.clear();
-  for (size_t k = 0; k < faces.size(); ++k) {
-    if (k > 0 && faces[k] == faces[k - 1]) continue;
-    const uint32_t* t = &triangles[3 * size_t(faces[k])];
-    for (int c = 0; c < 3; ++c)
-      if (t[c] != v) out.push_back(t[c]);
-  }
-  sort_small(out.data(), out.data() + out.size());
-  out.erase(std::unique(out.begin(), out.end()), out.end());
+// Splits [0, n) into `parts` nearly equal ranges; part p is [range_begin(n, parts, p), range_begin(n, parts, p + 1)).
+uint32_t range_begin(uint32_t n, uint32_t parts, uint32_t p) { return uint32_t(uint64_t(n) * p / parts); }
+
+// Number of vertex ranges for the scan-based passes: one per thread (each scans all corners, so
+// more ranges than threads only costs), at most 8. The output never depends on it.
+uint32_t scan_parts(uint32_t vertex_count) {
+  const int threads = tbb::this_task_arena::max_concurrency();
+  return std::max<uint32_t>(1, std::min<uint32_t>({uint32_t(std::max(threads, 1)), 8u, vertex_count}));
 }
 
 // Per-thread scratch of compute_vertex_flags.
@@ -67,11 +62,72 @@ uint32_t find_root(std::vector<uint32_t>& parent, uint32_t x) {
   return x;
 }
 
-// VertexFlag bits of v; with `ring` non-null also writes v's sorted distinct neighbours there
-// (the same edge sort yields both, so the fused pass saves one sort per vertex).
+// Fast path of vertex_flags for the usual vertex: at most kMaxSimpleFan distinct faces, each
+// with v once and consistently oriented, forming one closed fan (a cycle) or one open fan (a
+// path). With v rotated first, face i is (v, a_i, b_i); faces i and j share an edge {v, u} iff
+// b_i == a_j == u. All a_i distinct and all b_i distinct means no edge has more than two faces;
+// the fan is then one cycle or one path of the "next" map b_i → a_j. Returns false (nothing
+// written) for anything else, which vertex_flags handles in general. Needs no sort of edges, only
+// of the ≤ k + 1 neighbours.
+constexpr size_t kMaxSimpleFan = 16;
+
+bool simple_fan(std::span<const uint32_t> triangles, std::span<const uint32_t> faces, uint32_t v, uint8_t& flags,
+                uint32_t& ring_size, uint32_t* ring) {
+  const size_t k = faces.size();
+  if (k == 0 || k > kMaxSimpleFan) return false;
+  uint32_t a[kMaxSimpleFan + 1], b[kMaxSimpleFan];  // a also receives the open end's b
+  bool bad = false;
+  for (size_t i = 0; i < k; ++i) {
+    const uint32_t* t = &triangles[3 * size_t(faces[i])];
+    const uint32_t t0 = t[0], t1 = t[1], t2 = t[2];
+    // Rotate v first without branches: which corner holds v is unpredictable.
+    const bool c0 = t0 == v, c1 = t1 == v;
+    a[i] = c0 ? t1 : c1 ? t2 : t0;
+    b[i] = c0 ? t2 : c1 ? t0 : t1;
+    bad |= (a[i] == v) | (b[i] == v) | (a[i] == b[i]);  // degenerate (also a face listed twice)
+  }
+  for (size_t i = 0; i < k; ++i)
+    for (size_t j = i + 1; j < k; ++j) bad |= (a[i] == a[j]) | (b[i] == b[j]);
+  if (bad) return false;
+  // next[i]: the face after i around v (its a is i's b), or k at an open end.
+  uint8_t next[kMaxSimpleFan];
+  size_t open_ends = 0, start = 0;
+  bool is_next_of_some[kMaxSimpleFan] = {};
+  for (size_t i = 0; i < k; ++i) {
+    uint8_t n = uint8_t(k);
+    for (size_t j = 0; j < k; ++j) n = a[j] == b[i] ? uint8_t(j) : n;  // a_j distinct: at most one
+    next[i] = n;
+    if (n < k) is_next_of_some[n] = true;
+    open_ends += n == k;
+  }
+  if (open_ends > 1) return false;
+  if (open_ends == 1)
+    while (start < k && is_next_of_some[start]) ++start;  // the path's first face
+  size_t visited = 0;
+  for (size_t i = start; i < k && visited <= k; i = next[i]) {
+    ++visited;
+    if (open_ends == 0 && next[i] == start) break;
+  }
+  if (visited != k) return false;
+  flags = open_ends ? kVertexBoundary : 0;
+  ring_size = uint32_t(k + open_ends);  // the a_i, plus the open end's b
+  if (ring) {
+    if (open_ends)
+      for (size_t i = 0; i < k; ++i)
+        if (next[i] == k) a[k] = b[i];
+    sort_small(a, a + ring_size);
+    std::copy(a, a + ring_size, ring);
+  }
+  return true;
+}
+
+// VertexFlag bits of v and its number of distinct neighbours; with `ring` non-null also writes
+// them there, ascending (the same edge sort yields all three).
 uint8_t vertex_flags(std::span<const uint32_t> triangles, std::span<const uint32_t> faces, uint32_t v, FanScratch& s,
-                     uint32_t* ring = nullptr) {
+                     uint32_t& ring_size, uint32_t* ring = nullptr) {
+  ring_size = 0;
   if (faces.empty()) return kVertexIsolated;
+  if (uint8_t flags = 0; simple_fan(triangles, faces, v, flags, ring_size, ring)) return flags;
   s.edges.clear();
   uint32_t local = 0;
   for (size_t k = 0; k < faces.size(); ++k) {
@@ -92,7 +148,8 @@ uint8_t vertex_flags(std::span<const uint32_t> triangles, std::span<const uint32
     size_t j = i + 1;
     while (j < s.edges.size() && (s.edges[j] >> 32) == (s.edges[i] >> 32)) ++j;
     const size_t count = j - i;  // faces on edge {v, u}
-    if (ring) *ring++ = uint32_t(s.edges[i] >> 32);
+    if (ring) ring[ring_size] = uint32_t(s.edges[i] >> 32);
+    ++ring_size;
     if (count == 1) flags |= kVertexBoundary;
     if (count > 2) flags |= kVertexNonManifold;
     const uint32_t first = uint32_t(s.edges[i]);
@@ -116,69 +173,58 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
                                  std::vector<uint64_t>& offsets, std::vector<uint32_t>& faces) {
   const size_t corners = triangles.size() - triangles.size() % 3;
   assert(corners / 3 <= UINT32_MAX);
-  // Counts go to offsets[v + 2]; after the prefix sum offsets[v + 1] is v's start, and the
-  // scatter's fetch_add turns it into v's end = the start of v + 1: CSR without a cursor array.
+  // Each task owns a vertex range and scans every corner in face order, keeping its own: no
+  // atomics, and each list comes out ascending without a sort (hence deterministic). Scanning is
+  // sequential and cheap next to the scattered writes it replaces sharing.
+  // Counts go to offsets[v + 2]; after the prefix sum offsets[v + 1] is v's start, and the fill
+  // turns it into v's end = the start of v + 1: CSR without a cursor array.
   offsets.assign(size_t(vertex_count) + 2, 0);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, corners, 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i)
-      std::atomic_ref<uint64_t>(offsets[size_t(triangles[i]) + 2]).fetch_add(1, std::memory_order_relaxed);
-  });
+  const uint32_t parts = scan_parts(vertex_count);
+  auto each_part = [&](auto&& body) {
+    tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
+      const uint32_t lo = range_begin(vertex_count, parts, p), hi = range_begin(vertex_count, parts, p + 1);
+      for (size_t i = 0; i < corners; ++i)
+        if (const uint32_t v = triangles[i]; v >= lo && v < hi) body(v, i);
+    });
+  };
+  each_part([&](uint32_t v, size_t) { ++offsets[size_t(v) + 2]; });
   inclusive_prefix_sum(offsets);
   faces.resize(corners);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, corners, 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      uint64_t pos =
-          std::atomic_ref<uint64_t>(offsets[size_t(triangles[i]) + 1]).fetch_add(1, std::memory_order_relaxed);
-      faces[pos] = uint32_t(i / 3);
-    }
-  });
+  each_part([&](uint32_t v, size_t i) { faces[offsets[size_t(v) + 1]++] = uint32_t(i / 3); });
   offsets.pop_back();
-  // The scatter order depends on scheduling; sorting each short list makes it deterministic.
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, vertex_count, kVertexGrain),
-                    [&](const tbb::blocked_range<uint32_t>& r) {
-                      for (uint32_t v = r.begin(); v != r.end(); ++v)
-                        sort_small(faces.data() + offsets[v], faces.data() + offsets[v + 1]);
-                    });
 }
 
 void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
                                    std::span<const uint32_t> vertex_face, std::vector<uint64_t>& offsets,
                                    std::vector<uint32_t>& neighbours, std::span<uint8_t> flags) {
   assert(!vf_offsets.empty());
+  assert(flags.empty() || flags.size() + 1 == vf_offsets.size());
   const uint32_t vertex_count = uint32_t(vf_offsets.size() - 1);
-  tbb::enumerable_thread_specific<std::vector<uint32_t>> scratch;
   auto faces_of = [&](uint32_t v) { return vertex_face.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]); };
-  // Pass 1: count distinct neighbours into offsets[v + 1].
+  // Pass 1: flags and ring sizes; pass 2: the rings, straight into place. The common vertex takes
+  // simple_fan's path, whose size pass needs no sort: cheaper in time and memory than buffering
+  // the rings of pass 1 and copying them.
   offsets.assign(size_t(vertex_count) + 1, 0);
+  tbb::enumerable_thread_specific<FanScratch> fans;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, vertex_count, kVertexGrain),
                     [&](const tbb::blocked_range<uint32_t>& r) {
-                      std::vector<uint32_t>& ring = scratch.local();
+                      FanScratch& s = fans.local();
                       for (uint32_t v = r.begin(); v != r.end(); ++v) {
-                        gather_ring(triangles, faces_of(v), v, ring);
-                        offsets[size_t(v) + 1] = ring.size();
+                        uint32_t size = 0;
+                        const uint8_t f = vertex_flags(triangles, faces_of(v), v, s, size);
+                        if (!flags.empty()) flags[v] = f;
+                        offsets[size_t(v) + 1] = size;
                       }
                     });
   inclusive_prefix_sum(offsets);
-  // Pass 2: recompute each ring (cheaper than holding 2·3F candidate entries) and copy it out.
   neighbours.resize(offsets.back());
-  if (!flags.empty()) {
-    assert(flags.size() == vertex_count);
-    tbb::enumerable_thread_specific<FanScratch> fans;
-    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, vertex_count, kVertexGrain),
-                      [&](const tbb::blocked_range<uint32_t>& r) {
-                        FanScratch& s = fans.local();
-                        for (uint32_t v = r.begin(); v != r.end(); ++v)
-                          flags[v] = vertex_flags(triangles, faces_of(v), v, s, neighbours.data() + offsets[v]);
-                      });
-    return;
-  }
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, vertex_count, kVertexGrain),
                     [&](const tbb::blocked_range<uint32_t>& r) {
-                      std::vector<uint32_t>& ring = scratch.local();
+                      FanScratch& s = fans.local();
                       for (uint32_t v = r.begin(); v != r.end(); ++v) {
-                        gather_ring(triangles, faces_of(v), v, ring);
-                        assert(ring.size() == offsets[size_t(v) + 1] - offsets[v]);
-                        std::copy(ring.begin(), ring.end(), neighbours.begin() + ptrdiff_t(offsets[v]));
+                        uint32_t size = 0;
+                        vertex_flags(triangles, faces_of(v), v, s, size, neighbours.data() + offsets[v]);
+                        assert(size == offsets[size_t(v) + 1] - offsets[v]);
                       }
                     });
 }
@@ -190,9 +236,11 @@ void compute_vertex_flags(std::span<const uint32_t> triangles, std::span<const u
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(flags.size()), kVertexGrain),
                     [&](const tbb::blocked_range<uint32_t>& r) {
                       FanScratch& s = scratch.local();
+                      uint32_t size = 0;
                       for (uint32_t v = r.begin(); v != r.end(); ++v)
                         flags[v] = vertex_flags(
-                            triangles, vertex_face.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]), v, s);
+                            triangles, vertex_face.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]), v, s,
+                            size);
                     });
 }
 

@@ -1,6 +1,6 @@
 // Connectivity of an indexed triangle mesh as flat CSR arrays (DESIGN.md §2): vertex→face,
 // vertex→vertex, and per-vertex topology flags. Built by counting passes and prefix sums: no
-// per-element allocation, memory = the output plus a few KiB of scratch per thread.
+// per-element allocation.
 // All functions are TBB-parallel and deterministic (the output does not depend on the number of
 // threads). Preconditions for every function: triangle indices < vertex_count, face count < 2^32.
 #pragma once
@@ -13,16 +13,16 @@ namespace streamcvd {
 
 /// CSR vertex→face: faces of vertex v are faces[offsets[v] .. offsets[v+1]), ascending. Every
 /// corner contributes one entry (faces.size() == triangles.size(), a face repeating a vertex is
-/// listed twice there). offsets gets V+1 entries. O(F + V) time; the vectors are resized (their
-/// capacity is reused).
+/// listed twice there). offsets gets V+1 entries. O(F·T + V) time for T ≤ 8 threads (each
+/// scans all corners for its vertex range: no atomics, no sort); the vectors are resized.
 void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t vertex_count,
                                  std::vector<uint64_t>& offsets, std::vector<uint32_t>& faces);
 
 /// CSR vertex→vertex from the triangles and their vertex→face CSR: the neighbours of v (vertices
 /// sharing a face with v, v itself excluded) in ascending order, each once. The result is
-/// symmetric. Two passes (count, fill) over each vertex's faces: O(F · log(valence)) time.
-/// With a non-empty `flags` (V entries) the fill pass also computes compute_vertex_flags' result,
-/// about 30% cheaper than calling both.
+/// symmetric. Two passes (sizes, then rings in place) over each vertex's faces:
+/// O(F · log(valence)) time, no memory beyond the output. With a non-empty `flags` (V entries)
+/// the first pass also stores compute_vertex_flags' result (it computes it anyway).
 void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
                                    std::span<const uint32_t> vertex_face, std::vector<uint64_t>& offsets,
                                    std::vector<uint32_t>& neighbours, std::span<uint8_t> flags = {});

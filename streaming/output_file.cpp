@@ -1,10 +1,13 @@
 #include "streaming/output_file.h"
 
 #include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/types.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include <zstd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -21,6 +24,9 @@ namespace {
 
 constexpr size_t kBufferSize = size_t(4) << 20;
 constexpr size_t kZstdOutSize = size_t(1) << 20;
+constexpr size_t kDirectAlign = 4096;               // O_DIRECT alignment of memory, offsets and sizes
+constexpr size_t kDirectBlock = size_t(2) << 20;    // bounce buffer: requests large enough for full speed
+constexpr size_t kDirectMin = size_t(1) << 20;      // smaller writes are not worth the bypass
 constexpr size_t kMaxNameInTemp = 200;  // keeps ".<name>.tmp.<pid>.<16 hex>" under NAME_MAX
 
 // ---- Registry of live temporary files ------------------------------------------------------
@@ -283,11 +289,63 @@ void AtomicOutputFile::write(const void* data, size_t n) {
   }
 }
 
+void AtomicOutputFile::write_direct(const void* data, size_t n) {
+  if (done_) throw std::logic_error(path_ + ": write after commit or failure");
+  if (zstd_ || n < kDirectMin) return write(data, n);
+  flush_buffer();
+  const int plain = ::fcntl(fd_, F_GETFL);
+  if (flushed_ % kDirectAlign != 0 || plain < 0 || ::fcntl(fd_, F_SETFL, plain | O_DIRECT) != 0)
+    return write(data, n);
+  // Mapped, not malloc'ed: page-aligned, and returned to the system at once (a freed malloc
+  // block of this size may stay resident in a thread's arena and add to the peak RSS).
+  struct Unmap {
+    void operator()(char* p) const { ::munmap(p, kDirectBlock); }
+  };
+  void* mapped = ::mmap(nullptr, kDirectBlock, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  std::unique_ptr<char, Unmap> bounce(mapped == MAP_FAILED ? nullptr : static_cast<char*>(mapped));
+  const char* p = static_cast<const char*>(data);
+  size_t left = n;
+  bool padded = false;
+  while (bounce && left > 0) {
+    const size_t take = std::min(left, kDirectBlock);
+    const size_t whole = (take + kDirectAlign - 1) / kDirectAlign * kDirectAlign;
+    std::memcpy(bounce.get(), p, take);
+    std::memset(bounce.get() + take, 0, whole - take);  // the tail block is padded, truncated below
+    size_t done = 0;
+    while (done < whole) {
+      ssize_t w = ::write(fd_, bounce.get() + done, whole - done);
+      if (w < 0 && errno == EINTR) continue;
+      if (w < 0 && errno == EINVAL && done == 0) break;  // O_DIRECT refused (file system): fall back
+      if (w < 0) fail(std::string("write failed: ") + std::strerror(errno));
+      if (w == 0) fail("write failed: no progress");
+      done += size_t(w);
+    }
+    if (done < whole) break;
+    padded = whole != take;
+    p += take;
+    left -= take;
+    flushed_ += take;
+    written_ += take;
+  }
+  if (::fcntl(fd_, F_SETFL, plain) != 0) fail(std::string("fcntl failed: ") + std::strerror(errno));
+  if (padded && (::ftruncate(fd_, off_t(flushed_)) != 0 || ::lseek(fd_, off_t(flushed_), SEEK_SET) < 0))
+    fail(std::string("truncate failed: ") + std::strerror(errno));
+  if (left > 0) write(p, left);  // no bounce buffer, or O_DIRECT unsupported here
+}
+
+void AtomicOutputFile::sync() {
+  if (done_) throw std::logic_error(path_ + ": sync after commit or failure");
+  flush_buffer();
+  if (::fdatasync(fd_) != 0) fail(std::string("fsync failed: ") + std::strerror(errno));
+  synced_ = flushed_;
+}
+
 void AtomicOutputFile::patch(uint64_t offset, const void* data, size_t n) {
   if (done_) throw std::logic_error(path_ + ": patch after commit or failure");
   if (zstd_) throw std::logic_error(path_ + ": patch() on a compressed file");
   if (offset > written_ || n > written_ - offset) throw std::logic_error(path_ + ": patch() past the written bytes");
   const char* p = static_cast<const char*>(data);
+  synced_ = ~uint64_t(0);  // the patched bytes are not durable yet
   // Part already in the file: pwrite. Part still in the buffer: overwrite it there.
   while (n > 0 && offset < flushed_) {
     size_t take = size_t(std::min<uint64_t>(n, flushed_ - offset));
@@ -304,7 +362,7 @@ void AtomicOutputFile::patch(uint64_t offset, const void* data, size_t n) {
   if (n > 0) std::memcpy(buffer_.get() + (offset - flushed_), p, n);
 }
 
-void AtomicOutputFile::commit() {
+void AtomicOutputFile::commit(bool sync_folder) {
   if (done_) throw std::logic_error(path_ + ": commit after commit or failure");
   flush_buffer();
   if (zstd_) {
@@ -316,8 +374,9 @@ void AtomicOutputFile::commit() {
       if (ZSTD_isError(remaining)) fail(std::string("zstd: ") + ZSTD_getErrorName(remaining));
       write_raw(zstd_->out.get(), out.pos);
     } while (remaining != 0);
+    synced_ = ~uint64_t(0);  // the frame's epilogue went out after any sync()
   }
-  if (::fsync(fd_) != 0) fail(std::string("fsync failed: ") + std::strerror(errno));
+  if (synced_ != flushed_ && ::fsync(fd_) != 0) fail(std::string("fsync failed: ") + std::strerror(errno));
   int fd = fd_;
   fd_ = -1;
   if (::close(fd) != 0) fail(std::string("close failed: ") + std::strerror(errno));
@@ -325,13 +384,22 @@ void AtomicOutputFile::commit() {
     fail(std::string("cannot rename the temporary file into place: ") + std::strerror(errno));
   done_ = true;  // the temporary name is gone: abandon() must not unlink it any more
   // Make the rename itself durable. Some file systems cannot fsync a directory (EINVAL).
-  if (::fsync(dir_fd_) != 0 && errno != EINVAL && errno != EROFS) {
+  if (sync_folder && ::fsync(dir_fd_) != 0 && errno != EINVAL && errno != EROFS) {
     int e = errno;
     ::unlinkat(dir_fd_, name_.c_str(), 0);
     abandon();
     throw OutputError(error_at(path_, std::string("fsync of the folder failed: ") + std::strerror(e)));
   }
   abandon();
+}
+
+void sync_directory(const std::string& folder) {
+  int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) throw OutputError(error_at(folder, std::string("cannot open folder: ") + std::strerror(errno)));
+  const int e = ::fsync(fd) != 0 ? errno : 0;
+  ::close(fd);
+  if (e != 0 && e != EINVAL && e != EROFS)
+    throw OutputError(error_at(folder, std::string("fsync of the folder failed: ") + std::strerror(e)));
 }
 
 void write_file_atomic(const std::string& path, std::string_view contents) {

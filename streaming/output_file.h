@@ -49,14 +49,26 @@ class AtomicOutputFile {
     written_ += k;
   }
 
+  /// Appends n bytes like write(), but large uncompressed blocks bypass the page cache (O_DIRECT,
+  /// through an aligned bounce buffer) when the file system allows it, else plain write(). For
+  /// big arrays not read back soon: on this project's VM disks ~5x faster than buffered writes
+  /// followed by fsync. Throws OutputError like write().
+  void write_direct(const void* data, size_t n);
+
+  /// Flushes and makes the temporary file's bytes durable (fdatasync) without renaming it, so a
+  /// caller can sync many files (e.g. in parallel) before committing any; commit() then skips
+  /// its own fsync unless more bytes were written. Throws OutputError (temp file removed).
+  void sync();
+
   /// Overwrites bytes [offset, offset + n) that were already written (buffered or flushed).
   /// Uncompressed files only: throws std::logic_error for a compressed file or a range past
   /// bytes_written(); OutputError on an I/O error.
   void patch(uint64_t offset, const void* data, size_t n);
 
-  /// Flushes, fsyncs the file, renames it onto the final path and fsyncs the folder.
+  /// Flushes, fsyncs the file, renames it onto the final path and fsyncs the folder (with
+  /// `sync_folder` false the caller does that once for many files, see sync_directory()).
   /// Throws OutputError (and removes the temporary file) on failure.
-  void commit();
+  void commit(bool sync_folder = true);
 
   /// Logical bytes written so far (before compression).
   uint64_t bytes_written() const { return written_; }
@@ -85,10 +97,15 @@ class AtomicOutputFile {
   size_t capacity_ = 0, used_ = 0;
   uint64_t written_ = 0;    // logical bytes (buffered + flushed)
   uint64_t flushed_ = 0;    // logical bytes handed to the file or compressor
+  uint64_t synced_ = ~uint64_t(0);  // flushed_ at the last sync(), if any
   struct Zstd;
   std::unique_ptr<Zstd> zstd_;
   bool done_ = false;       // committed or failed
 };
+
+/// fsyncs a folder, making renames and removals inside it durable. File systems that cannot
+/// fsync a folder (EINVAL, EROFS) are accepted. Throws OutputError "<folder>: <problem>".
+void sync_directory(const std::string& folder);
 
 /// Writes `contents` to `path` atomically (same guarantees as AtomicOutputFile). For small
 /// outputs such as JSON reports. Throws OutputError.

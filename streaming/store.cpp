@@ -7,7 +7,7 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
-#include <tbb/parallel_sort.h>
+#include <tbb/task_arena.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <type_traits>
 
 #include "core/adjacency.h"
@@ -26,6 +27,7 @@
 #include "core/hilbert.h"
 #include "streaming/mesh_io.h"
 #include "streaming/output_file.h"
+#include "streaming/store_writer.h"
 
 namespace streamcvd {
 
@@ -34,7 +36,6 @@ static_assert(std::is_trivially_copyable_v<StoreHeader> && sizeof(StoreHeader) =
               "StoreHeader is an on-disk record");
 
 namespace {
-
 constexpr uint32_t kStoreVersion = 1;
 constexpr const char* kHeaderFile = "header.bin";
 constexpr size_t kGrain = 1 << 14;
@@ -107,8 +108,42 @@ void check_soup(const TriangleSoupView& soup) {
                      std::to_string(soup.triangles[bad]) + " of " + std::to_string(v));
 }
 
+// Number of index ranges for the scan-based counting sorts below: one per thread (each part scans
+// the whole input and keeps the items whose bucket falls in its range, so items of a bucket stay
+// in input order without atomics), at most 8. The output never depends on it.
+uint32_t scan_parts(uint64_t buckets) {
+  const int threads = tbb::this_task_arena::max_concurrency();
+  return uint32_t(std::max<uint64_t>(1, std::min<uint64_t>({uint64_t(std::max(threads, 1)), 8, buckets})));
+}
+
+// Stable counting sort of items 0..n-1 by bucket_of(i) < buckets, split into scan_parts() bucket
+// ranges scanned in parallel: start gets buckets + 1 entries (bucket b holds positions
+// [start[b], start[b+1])), and place(i, position) is called once per item, in increasing i
+// within each bucket.
+template <typename BucketOf, typename Place>
+void counting_sort(uint64_t n, uint32_t buckets, BucketOf bucket_of, std::vector<uint32_t>& start, Place place) {
+  // Counts at [b + 2], after the prefix sum [b + 1] is b's start and becomes its end while
+  // placing (the cursor trick of build_vertex_face_adjacency).
+  start.assign(size_t(buckets) + 2, 0);
+  const uint32_t parts = scan_parts(buckets);
+  auto each_part = [&](auto&& body) {
+    tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
+      const uint32_t lo = uint32_t(uint64_t(buckets) * p / parts), hi = uint32_t(uint64_t(buckets) * (p + 1) / parts);
+      for (uint64_t i = 0; i < n; ++i)
+        if (const uint32_t b = bucket_of(i); b >= lo && b < hi) body(b, i);
+    });
+  };
+  each_part([&](uint32_t b, uint64_t) { ++start[size_t(b) + 2]; });
+  uint32_t sum = 0;
+  for (uint32_t& x : start) x = sum += x;
+  each_part([&](uint32_t b, uint64_t i) { place(i, start[size_t(b) + 1]++); });
+  start.pop_back();
+}
+
 // Input vertex id of each store vertex: sorted by (Hilbert key, input id), the id breaking ties
-// so the order is a pure function of the input.
+// so the order is a pure function of the input. A stable counting sort on the key's top octree
+// levels (~2 vertices per bucket of a surface... up to a few hundred), then a comparison sort
+// inside each bucket: O(V) passes instead of a full O(V log V) sort.
 void hilbert_order(std::span<const float> positions, const Bbox& box, std::vector<uint32_t>& order) {
   struct KeyId {
     uint64_t key;
@@ -116,50 +151,44 @@ void hilbert_order(std::span<const float> positions, const Bbox& box, std::vecto
     bool operator<(const KeyId& o) const { return key < o.key || (key == o.key && id < o.id); }
   };
   const uint32_t n = uint32_t(order.size());
-  std::vector<KeyId> keys(n);
-  const HilbertGrid grid = make_hilbert_grid(box.lo, box.hi);
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, n, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
-    for (uint32_t v = r.begin(); v != r.end(); ++v) keys[v] = {hilbert_key(grid, &positions[3 * size_t(v)]), v};
+  std::vector<uint64_t> keys(n);
+  hilbert_keys(positions, make_hilbert_grid(box.lo, box.hi), keys);
+  int levels = 1;  // octree levels of the bucket index: 8^levels ≈ n/2 buckets, at most 2^21
+  while (levels < 7 && (uint64_t(1) << (3 * levels)) < n / 2) ++levels;
+  const int shift = 3 * kHilbertBits - 3 * levels;
+  std::vector<KeyId> sorted(n);
+  std::vector<uint32_t> start;
+  counting_sort(
+      n, uint32_t(1) << (3 * levels), [&](uint64_t v) { return uint32_t(keys[v] >> shift); }, start,
+      [&](uint64_t v, uint32_t at) { sorted[at] = {keys[v], uint32_t(v)}; });
+  std::vector<uint64_t>().swap(keys);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, start.size() - 1, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t b = r.begin(); b != r.end(); ++b) std::sort(sorted.begin() + start[b], sorted.begin() + start[b + 1]);
   });
-  tbb::parallel_sort(keys.begin(), keys.end());
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, n, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
-    for (uint32_t i = r.begin(); i != r.end(); ++i) order[i] = keys[i].id;
+    for (uint32_t i = r.begin(); i != r.end(); ++i) order[i] = sorted[i].id;
   });
 }
 
-// Counting sort of the input faces by owner (smallest new vertex id): fills `owned` (V+1
+// Stable counting sort of the input faces by owner (smallest new vertex id): fills `owned` (V+1
 // entries, faces of owner v are [owned[v], owned[v+1])) and writes the remapped triangles in that
-// order. Faces of one owner keep their input order (stable), so the result is deterministic.
+// order, corner order kept. Faces of one owner keep their input order, so the result is
+// deterministic.
 void sort_faces_by_owner(std::span<const uint32_t> in, std::span<const uint32_t> new_of_old,
                          std::vector<uint32_t>& owned, std::vector<uint32_t>& out) {
   const uint32_t v_count = uint32_t(new_of_old.size());
   const uint64_t f_count = in.size() / 3;
-  auto owner = [&](uint64_t f) {
-    return std::min({new_of_old[in[3 * f]], new_of_old[in[3 * f + 1]], new_of_old[in[3 * f + 2]]});
-  };
-  // Same offset trick as build_vertex_face_adjacency: counts at [o + 2], cursors at [o + 1].
-  owned.assign(size_t(v_count) + 2, 0);
+  std::vector<uint32_t> owner(f_count);
   tbb::parallel_for(tbb::blocked_range<uint64_t>(0, f_count, kGrain), [&](const tbb::blocked_range<uint64_t>& r) {
     for (uint64_t f = r.begin(); f != r.end(); ++f)
-      std::atomic_ref<uint32_t>(owned[size_t(owner(f)) + 2]).fetch_add(1, std::memory_order_relaxed);
-  });
-  uint32_t sum = 0;
-  for (uint32_t& x : owned) x = sum += x;
-  std::vector<uint32_t> order(f_count);  // input face id at each sorted position
-  tbb::parallel_for(tbb::blocked_range<uint64_t>(0, f_count, kGrain), [&](const tbb::blocked_range<uint64_t>& r) {
-    for (uint64_t f = r.begin(); f != r.end(); ++f)
-      order[std::atomic_ref<uint32_t>(owned[size_t(owner(f)) + 1]).fetch_add(1, std::memory_order_relaxed)] =
-          uint32_t(f);
-  });
-  owned.pop_back();
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, v_count, 2048), [&](const tbb::blocked_range<uint32_t>& r) {
-    for (uint32_t v = r.begin(); v != r.end(); ++v) std::sort(order.begin() + owned[v], order.begin() + owned[v + 1]);
+      owner[f] = std::min({new_of_old[in[3 * f]], new_of_old[in[3 * f + 1]], new_of_old[in[3 * f + 2]]});
   });
   out.resize(3 * f_count);
-  tbb::parallel_for(tbb::blocked_range<uint64_t>(0, f_count, kGrain), [&](const tbb::blocked_range<uint64_t>& r) {
-    for (uint64_t f = r.begin(); f != r.end(); ++f)
-      for (int k = 0; k < 3; ++k) out[3 * f + k] = new_of_old[in[3 * size_t(order[f]) + k]];  // corner order kept
-  });
+  counting_sort(
+      f_count, v_count, [&](uint64_t f) { return owner[f]; }, owned,
+      [&](uint64_t f, uint32_t at) {
+        for (int k = 0; k < 3; ++k) out[3 * size_t(at) + k] = new_of_old[in[3 * f + k]];
+      });
 }
 
 // Chunk boundaries: C = round(F / target) chunks of ~F/C owned faces each, cut at the vertex whose
@@ -326,17 +355,31 @@ MeshStore::MeshStore(MeshStore&&) noexcept = default;
 MeshStore& MeshStore::operator=(MeshStore&&) noexcept = default;
 
 MeshStore MeshStore::build(const TriangleSoupView& soup, const StoreBuildOptions& options) {
-  return build_from(soup, options, nullptr);
+  return build_from(soup, options, nullptr, nullptr);
 }
 
 MeshStore MeshStore::build(MeshBuffers&& soup, const StoreBuildOptions& options) {
   MeshBuffers owned = std::move(soup);
-  return build_from(owned.view(), options, &owned);
+  return build_from(owned.view(), options, &owned, nullptr);
 }
 
-MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOptions& options, MeshBuffers* consumed) {
+MeshStore MeshStore::build_and_write(MeshBuffers&& soup, const std::string& directory,
+                                     const StoreBuildOptions& options) {
+  MeshBuffers owned = std::move(soup);
+  return build_from(owned.view(), options, &owned, &directory);
+}
+
+MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOptions& options, MeshBuffers* consumed,
+                                const std::string* directory) {
   check_soup(soup);
   if (options.faces_per_chunk == 0) throw InputError("store build: faces_per_chunk must be positive");
+  // Writing while building: each array is handed to the writer thread as soon as it is final.
+  // Created only after the input checks, since it removes an older store's header.
+  std::optional<StoreDirectoryWriter> writer;
+  if (directory) writer.emplace(*directory, /*background=*/true);
+  auto hand_over = [&](const char* name, const auto& array) {
+    if (writer) writer->add(name, std::as_bytes(std::span(array)));
+  };
   const uint32_t v_count = soup.vertex_count();
   const uint64_t f_count = soup.face_count();
   MeshStore store;
@@ -361,15 +404,23 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
         for (int k = 0; k < 3; ++k) s.positions[3 * size_t(i) + k] = soup.positions[3 * size_t(old) + k];
       }
     });
+    hand_over("positions.f32", s.positions);
+    hand_over("original_ids.u32", s.original_ids);
     // 2. Faces remapped and sorted by owner.
     sort_faces_by_owner(soup.triangles, new_of_old, owned, s.triangles);
   }
+  hand_over("triangles.u32", s.triangles);
   if (consumed) *consumed = MeshBuffers{};  // `soup` views it: not used past this point
 
   // 3. Adjacency and flags.
   build_vertex_face_adjacency(s.triangles, v_count, s.vf_offsets, s.vertex_face);
+  hand_over("vf_offsets.u64", s.vf_offsets);
+  hand_over("vf.u32", s.vertex_face);
   s.flags.resize(v_count);
   build_vertex_vertex_adjacency(s.triangles, s.vf_offsets, s.vertex_face, s.vv_offsets, s.vertex_vertex, s.flags);
+  hand_over("vv_offsets.u64", s.vv_offsets);
+  hand_over("vv.u32", s.vertex_vertex);
+  hand_over("flags.u8", s.flags);
 
   // 4. Chunks.
   s.chunks = cut_chunks(owned, options.faces_per_chunk);
@@ -389,29 +440,19 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
   h.vertex_face_count = s.vertex_face.size();
   std::copy(box.lo, box.lo + 3, h.bbox_min);
   std::copy(box.hi, box.hi + 3, h.bbox_max);
+  if (writer) {
+    hand_over("chunks.bin", s.chunks);
+    writer->finish(kHeaderFile, std::as_bytes(std::span(&h, 1)));
+  }
   return store;
 }
 
 void MeshStore::write(const std::string& directory) const {
-  std::error_code ec;
-  std::filesystem::create_directories(directory, ec);
-  if (ec || !std::filesystem::is_directory(directory))
-    throw OutputError(
-        error_at(directory, "cannot create store directory" + (ec ? ": " + ec.message() : std::string())));
-  // Invalidate an older store first: until the new header lands, the directory is not a store.
-  const std::string header_path = directory + "/" + kHeaderFile;
-  if (::unlink(header_path.c_str()) != 0 && errno != ENOENT)
-    throw OutputError(error_at(header_path, std::string("cannot remove old header: ") + std::strerror(errno)));
+  StoreDirectoryWriter writer(directory, /*background=*/false);
   const std::vector<ArrayFile> files = array_files(impl_->header);
   const std::vector<std::span<const std::byte>> arrays = impl_->array_bytes();
-  for (size_t i = 0; i < files.size(); ++i) {
-    AtomicOutputFile out(directory + "/" + files[i].name);
-    out.write(arrays[i].data(), arrays[i].size());
-    out.commit();
-  }
-  AtomicOutputFile out(header_path);
-  out.write(&impl_->header, sizeof(StoreHeader));
-  out.commit();
+  for (size_t i = 0; i < files.size(); ++i) writer.add(files[i].name, arrays[i]);
+  writer.finish(kHeaderFile, std::as_bytes(std::span(&impl_->header, 1)));
 }
 
 MeshStore MeshStore::open(const std::string& directory) {

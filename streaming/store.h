@@ -61,6 +61,12 @@ class MeshStore {
   /// Same, consuming `soup`: its arrays are freed as soon as they have been copied into the
   /// store, which lowers the peak memory of ingesting a file by the soup's size.
   static MeshStore build(MeshBuffers&& soup, const StoreBuildOptions& options = {});
+  /// build(std::move(soup)) followed by write(directory), except that each array is written
+  /// (by one background thread) as soon as it is final, so the disk works while the rest is
+  /// built. Same result, same crash safety; the old store in `directory` is invalidated only
+  /// once the soup has passed its checks. Throws InputError / OutputError.
+  static MeshStore build_and_write(MeshBuffers&& soup, const std::string& directory,
+                                   const StoreBuildOptions& options = {});
   /// Maps a store directory written by write(). Throws InputError "<dir>/<file>: <problem>"
   /// (missing file, bad magic/version, sizes that disagree with the header). Also validates,
   /// in one parallel O(V + F) pass over the index arrays, everything that would make an
@@ -69,8 +75,9 @@ class MeshStore {
   static MeshStore open(const std::string& directory);
 
   /// Writes every array into `directory` (created if needed). An existing header.bin is removed
-  /// first and the new one written last, each array through a temporary file that is fsynced
-  /// and renamed, so an interrupted write never leaves a valid-looking store. Throws OutputError.
+  /// first and the new one written last, each array through a temporary file that is synced
+  /// before any is renamed (streaming/store_writer.h), so an interrupted write never leaves a
+  /// valid-looking store. Throws OutputError.
   void write(const std::string& directory) const;
 
   MeshView view() const;
@@ -81,7 +88,8 @@ class MeshStore {
   uint64_t size_bytes() const;
 
  private:
-  static MeshStore build_from(const TriangleSoupView& soup, const StoreBuildOptions& options, MeshBuffers* consumed);
+  static MeshStore build_from(const TriangleSoupView& soup, const StoreBuildOptions& options, MeshBuffers* consumed,
+                              const std::string* directory);
 
   struct Impl;
   std::unique_ptr<Impl> impl_;

@@ -86,6 +86,41 @@ TEST(Adjacency, DegenerateFacesDoNotBreakCounts) {
   EXPECT_EQ(a.flags[3], 0);  // only a point face: no edges, not isolated
 }
 
+// A closed fan of n triangles around vertex 0 (rim 1..n) capped by a fan around vertex n + 1,
+// optionally with face `flip` reversed (inconsistent orientation) and the last rim face removed
+// (open fan). Covers both the common-vertex fast path (n ≤ 16, oriented) and the general one.
+std::vector<uint32_t> double_cone(uint32_t n, int flip, bool open) {
+  std::vector<uint32_t> t;
+  for (uint32_t i = 0; i < n; ++i) {
+    const uint32_t a = 1 + i, b = 1 + (i + 1) % n;
+    if (open && i == n - 1) continue;
+    t.insert(t.end(), {0, a, b});
+    t.insert(t.end(), {n + 1, b, a});
+  }
+  if (flip >= 0) std::swap(t[3 * size_t(flip) + 1], t[3 * size_t(flip) + 2]);
+  return t;
+}
+
+TEST(Adjacency, FansOfAnySizeAndOrientation) {
+  for (uint32_t n : {3u, 6u, 16u, 17u, 40u})
+    for (int flip : {-1, 0, 3})
+      for (bool open : {false, true}) {
+        SCOPED_TRACE(::testing::Message() << "n " << n << " flip " << flip << " open " << open);
+        Adjacency a(double_cone(n, flip, open), n + 2);
+        const uint8_t apex = open ? kVertexBoundary : 0;
+        EXPECT_EQ(a.flags[0], apex);
+        EXPECT_EQ(a.flags[n + 1], apex);
+        EXPECT_EQ(a.ring(0).size(), n);
+        EXPECT_EQ(a.ring(0).front(), 1u);
+        EXPECT_EQ(a.ring(0).back(), n);
+        for (uint32_t v = 1; v <= n; ++v) {
+          const bool on_cut = open && (v == n || v == 1);
+          EXPECT_EQ(a.flags[v], on_cut ? kVertexBoundary : 0) << v;
+          EXPECT_EQ(a.ring(v).size(), on_cut ? 3u : 4u) << v;
+        }
+      }
+}
+
 TEST(Adjacency, EmptyMesh) {
   Adjacency a({}, 3);
   EXPECT_EQ(a.vf_off, (std::vector<uint64_t>{0, 0, 0, 0}));

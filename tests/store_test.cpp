@@ -316,6 +316,38 @@ TEST(Store, WriteOpenRoundTripIsByteIdentical) {
   fs::remove_all(dir.parent_path());
 }
 
+TEST(Store, BuildAndWriteEqualsBuildThenWrite) {
+  MeshBuffers mesh = shuffled(make_torus(80, 50), 4);
+  const StoreBuildOptions options{.faces_per_chunk = 900};
+  MeshStore built = MeshStore::build(mesh.view(), options);
+  const fs::path root = test::temp_dir("store_build_and_write");
+  const fs::path dir = root / "store";
+  MeshStore old = MeshStore::build(make_icosphere(1).view());
+  old.write(dir.string());
+  // A bad soup fails before the older store is touched.
+  MeshBuffers bad = make_icosphere(1);
+  bad.triangles[4] = 1000;
+  EXPECT_THROW(MeshStore::build_and_write(std::move(bad), dir.string()), InputError);
+  expect_same_arrays(old, MeshStore::open(dir.string()));
+  MeshBuffers copy = mesh;
+  MeshStore streamed = MeshStore::build_and_write(std::move(copy), dir.string(), options);
+  expect_same_arrays(built, streamed);
+  expect_same_arrays(built, MeshStore::open(dir.string()));
+  uint64_t on_disk = 0, temporaries = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    on_disk += e.file_size();
+    temporaries += e.path().filename().string().find(".tmp.") != std::string::npos;
+  }
+  EXPECT_EQ(on_disk, built.size_bytes());
+  EXPECT_EQ(temporaries, 0u);
+  // An unwritable destination fails with OutputError and leaves no store.
+  const fs::path file = root / "plain_file";
+  std::ofstream(file) << "x";
+  MeshBuffers again = mesh;
+  EXPECT_THROW(MeshStore::build_and_write(std::move(again), (file / "store").string()), OutputError);
+  fs::remove_all(root);
+}
+
 TEST(Store, LoadMeshOrStoreReadsFiles) {
   const std::string path = test::data_path("cgal_hand.off");
   EXPECT_FALSE(is_store_directory(path));

@@ -5,7 +5,10 @@
 #   STREAMCVD=/path/to/streamcvd tools/bench_ingest.sh [WORK_DIR]
 # Needs `$STREAMCVD ingest IN STORE_DIR --json` and /usr/bin/time. The torus comes from
 # `$STREAMCVD generate torus` when available, else from a python3 one-off (slow but dependency-free).
-# Env: RINGS/SEGMENTS (default 2236 x 2236 = 10.0M faces), DRAGON (path), KEEP=1 keeps the stores.
+# Env: RINGS/SEGMENTS (default 2236 x 2236 = 10.0M faces), DRAGON (path), KEEP=1 keeps the stores,
+# RUNS (default 1) ingests of each input, DISK=0 skips the disk bound: the time dd takes to write
+# as many bytes as the torus store, past the page cache (as the store writer does) and buffered +
+# fsync, which bounds what any ingest writing that store durably can reach.
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -78,6 +81,32 @@ bench() {
   [[ "${KEEP:-0}" == 1 ]] || rm -rf "$store"
 }
 
+# Disk bound: write `bytes` bytes of the torus file's contents (not zeros, which a virtual disk
+# may special-case) durably, like the store writer (O_DIRECT) and like a plain buffered writer.
+# The source is prepared first, so dd reads it from the page cache.
+disk_bound() {
+  local bytes="$1" src="$work/disk_bound.src" out="$work/disk_bound.bin" mode t
+  (while cat "$torus"; do :; done 2>/dev/null || true) | head -c "$bytes" >"$src"
+  cat "$src" >/dev/null
+  for mode in direct buffered; do
+    local flags="conv=fsync"
+    [[ "$mode" == direct ]] && flags+=" oflag=direct"
+    rm -f "$out"
+    sync
+    /usr/bin/time -f %e -o "$work/disk_bound.time" dd if="$src" of="$out" bs=4M $flags 2>/dev/null
+    t=$(tail -1 "$work/disk_bound.time")
+    awk -v m="$mode" -v b="$bytes" -v t="$t" 'BEGIN {
+      printf "disk     %-8s dd of %8.1f MB with fsync: %6.2f s = %7.1f MB/s\n", m, b / 1e6, t, b / 1e6 / (t > 0 ? t : 1e-9) }'
+  done
+  rm -f "$out" "$src" "$work/disk_bound.time"
+}
+
 echo "streamcvd: $STREAMCVD   cores: $(nproc)   load: $(cut -d' ' -f1-3 /proc/loadavg)"
-bench "$torus" torus
-if [[ -s "$DRAGON" ]]; then bench "$DRAGON" dragon; else echo "dragon not found at $DRAGON (set DRAGON=...)" >&2; fi
+for ((run = 1; run <= ${RUNS:-1}; ++run)); do
+  bench "$torus" torus
+  if [[ -s "$DRAGON" ]]; then bench "$DRAGON" dragon; else echo "dragon not found at $DRAGON (set DRAGON=...)" >&2; fi
+done
+if [[ "${DISK:-1}" != 0 ]]; then
+  store_bytes=$(awk -F': ' '/"store_bytes"/ {gsub(/[ ,]/, "", $2); print $2}' "$work/torus.json")
+  [[ -n "$store_bytes" ]] && disk_bound "$store_bytes"
+fi

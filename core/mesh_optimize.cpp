@@ -42,6 +42,8 @@ double quality(const Vec3& a, const Vec3& b, const Vec3& c) {
 }
 
 constexpr int64_t kNoTwin = -1;
+// Triangles below this Q are slivers: their normal is unreliable (see free_vertices).
+constexpr double kSliverQuality = 0.2;
 
 uint32_t next_in_face(uint32_t h) { return h - h % 3 + (h + 1) % 3; }
 uint32_t prev_in_face(uint32_t h) { return h - h % 3 + (h + 2) % 3; }
@@ -259,7 +261,9 @@ std::vector<uint8_t> free_vertices(const Work& w, std::span<const uint8_t> movab
       const size_t f = h / 3, g = size_t(w.twin[h]) / 3;
       const Vec3 nf = unit(area_vector(point(w.P, w.T[3 * f]), point(w.P, w.T[3 * f + 1]), point(w.P, w.T[3 * f + 2])));
       const Vec3 ng = unit(area_vector(point(w.P, w.T[3 * g]), point(w.P, w.T[3 * g + 1]), point(w.P, w.T[3 * g + 2])));
-      pinned = dot(nf, ng) < cos_feature;
+      // A sliver's normal says nothing about the surface (strip triangles along holes, needles):
+      // only a bend between two well-shaped triangles is a feature.
+      pinned = dot(nf, ng) < cos_feature && std::min(w.q[f], w.q[g]) >= kSliverQuality;
     }
     if (pinned) free[w.T[h]] = free[w.T[next_in_face(uint32_t(h))]] = 0;
   }
@@ -312,7 +316,9 @@ uint64_t relax_sweep(Work& w, std::span<const uint32_t> vf_offsets, std::span<co
       const uint32_t* t = &w.T[3 * size_t(ring[i])];
       const int kv = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
       const Vec3 u = point(w.P, t[(kv + 1) % 3]), x = point(w.P, t[(kv + 2) % 3]);
-      ok = dot(unit(area_vector(target, u, x)), old_normal[i]) >= params.cos_normal_change;
+      // Slivers may turn (that is how they fatten) but not fold over.
+      ok = dot(unit(area_vector(target, u, x)), old_normal[i]) >=
+           (w.q[ring[i]] >= kSliverQuality ? params.cos_normal_change : 1e-3);
       const double q = quality(target, u, x);
       q_min_new = std::min(q_min_new, q);
       q_sum_new += q;

@@ -4,8 +4,10 @@
 #include <array>
 #include <cmath>
 #include <numbers>
+#include <string>
 
 #include "core/bvh.h"
+#include "core/errors.h"
 
 namespace streamcvd {
 
@@ -267,6 +269,14 @@ std::vector<uint8_t> free_vertices(const Work& w, std::span<const uint8_t> movab
     }
     if (pinned) free[w.T[h]] = free[w.T[next_in_face(uint32_t(h))]] = 0;
   }
+  // A vertex whose faces form more than one fan (a defect left in the output) stays.
+  std::vector<uint8_t> checked(V, 0);
+  for (size_t h = 0; h < w.T.size(); ++h) {
+    const uint32_t v = w.T[h];
+    if (!free[v] || checked[v]) continue;
+    checked[v] = 1;
+    free[v] = !has_neighbour_or_unsafe(w, uint32_t(h), UINT32_MAX);
+  }
   return free;
 }
 
@@ -386,6 +396,10 @@ MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<u
                                          std::span<uint32_t> surface_face, const MeshOptimizeOptions& options) {
   MeshOptimizeReport report;
   const size_t V = positions.size() / 3, F = triangles.size() / 3;
+  if (movable.size() != V || (surface && surface_face.size() != V) || triangles.size() != 3 * F)
+    throw InputError("optimize_mesh_quality: movable and surface_face need one entry per vertex");
+  for (uint32_t v : triangles)
+    if (v >= V) throw InputError("optimize_mesh_quality: a triangle uses vertex " + std::to_string(v) + " of " + std::to_string(V));
   const double deg = std::numbers::pi / 180;
   Work w{positions, triangles, build_twins(triangles, V), std::vector<uint32_t>(V, 0), std::vector<double>(F),
          std::cos(options.flip_max_dihedral_deg * deg)};

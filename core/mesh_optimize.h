@@ -48,7 +48,9 @@ struct MeshOptimizeReport {
 /// off features. With a `surface`, moved vertices end on it (plus their offset from it when
 /// keep_surface_offset): closest point found by walking its faces from surface_face[v], an
 /// input face near v (updated; UINT32_MAX = v does not move); without one they move in their
-/// tangent plane. O(F) per pass plus short walks. Deterministic. Not thread-safe on the arrays.
+/// tangent plane. movable (and surface_face with a surface) hold one entry per vertex; throws
+/// InputError otherwise or for a triangle index ≥ V. O(F) per pass plus short walks.
+/// Deterministic. Not thread-safe on the arrays.
 MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<uint32_t> triangles,
                                          std::span<const uint8_t> movable, const MeshView* surface,
                                          std::span<uint32_t> surface_face, const MeshOptimizeOptions& options = {});

@@ -248,13 +248,17 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   result.defect_vertices = defects.size();
   if (options.optimize_quality) {  // flips keep V, F, boundary and genus; moves stay on the input
     t = std::chrono::steady_clock::now();
-    const std::vector<uint8_t> movable = remesh_movable_vertices(labels, result.budget, dual.cluster_of_output_vertex);
-    std::vector<uint32_t> anchors = cluster_anchor_faces(mesh, labels, dual.cluster_of_output_vertex, dual.mesh.positions);
     MeshOptimizeOptions optimize = options.optimize;
     if (!options.project_to_surface) optimize.relax_iterations = 0;  // raw centroids asked for: flips only
     if (uses_quadrics(metric)) {  // QEM points: only nearly flat rings move, keeping their height
       optimize.feature_angle_deg = optimize.qem_feature_angle_deg;
       optimize.keep_surface_offset = true;
+    }
+    std::vector<uint8_t> movable(dual.mesh.vertex_count(), 0);
+    std::vector<uint32_t> anchors(dual.mesh.vertex_count(), UINT32_MAX);
+    if (optimize.relax_iterations > 0) {
+      movable = remesh_movable_vertices(labels, result.budget, dual.cluster_of_output_vertex);
+      anchors = cluster_anchor_faces(mesh, labels, dual.cluster_of_output_vertex, dual.mesh.positions);
     }
     const MeshOptimizeReport q =
         optimize_mesh_quality(dual.mesh.positions, dual.mesh.triangles, movable, &mesh, anchors, optimize);

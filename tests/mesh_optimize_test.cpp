@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "core/errors.h"
 #include "core/mesh_stats.h"
 #include "core/remesh.h"
 #include "core/shapes.h"
@@ -82,6 +83,39 @@ TEST(MeshOptimize, NeverCreatesAnExistingEdge) {
   const TopologyStats t = compute_topology_stats(m.view());
   EXPECT_TRUE(t.closed_manifold);
   EXPECT_EQ(t.duplicate_faces, 0u);
+}
+
+TEST(MeshOptimize, RejectsMismatchedArrays) {
+  MeshBuffers m = rhombus(0);
+  std::vector<uint8_t> too_short(2, 1);
+  EXPECT_THROW(optimize_mesh_quality(m.positions, m.triangles, too_short, nullptr, {}), InputError);
+  std::vector<uint8_t> movable(m.vertex_count(), 1);
+  m.triangles[5] = 9;
+  EXPECT_THROW(optimize_mesh_quality(m.positions, m.triangles, movable, nullptr, {}), InputError);
+}
+
+TEST(MeshOptimize, TwoFansThroughOneVertexStay) {
+  // Two flat hexagonal fans, in the planes z = 0 and x = 0, sharing their off-centre vertex 0
+  // (a non-manifold vertex left by a failed repair): both fans would pull it to the origin,
+  // but it is not moved, and the fans are not merged by a flip.
+  MeshBuffers m;
+  m.positions = {0, 0.2f, 0};
+  for (int fan = 0; fan < 2; ++fan)
+    for (int k = 0; k < 6; ++k) {
+      const float a = float(k) * 3.14159265f / 3;
+      if (fan == 0) m.positions.insert(m.positions.end(), {std::cos(a), std::sin(a), 0});
+      else m.positions.insert(m.positions.end(), {0, std::cos(a), std::sin(a)});
+    }
+  for (uint32_t fan = 0; fan < 2; ++fan)
+    for (uint32_t k = 0; k < 6; ++k) m.triangles.insert(m.triangles.end(), {0, 1 + 6 * fan + k, 1 + 6 * fan + (k + 1) % 6});
+  std::vector<uint8_t> movable(m.vertex_count(), 1);
+  const std::vector<float> before = m.positions;
+  optimize_mesh_quality(m.positions, m.triangles, movable, nullptr, {});
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(m.positions[k], before[k]);
+  const TopologyStats t = compute_topology_stats(m.view());
+  EXPECT_EQ(t.duplicate_faces, 0u);
+  EXPECT_EQ(t.nonmanifold_edges, 0u);
+  EXPECT_EQ(t.faces, 12u);
 }
 
 // A flat grid with its interior vertices jittered: planar, so every flip and move is allowed.

@@ -1,10 +1,10 @@
 // Triangle-quality post-pass on a remeshed surface: edge flips between nearly coplanar
 // triangles (a Delaunay-like improvement of the smaller quality of each flipped pair; Lawson's
 // flip algorithm with Q = 6/√3·area/(half-perimeter·longest edge) as criterion) and tangential
-// relaxation of free vertices towards the area-weighted centroid of their 1-ring (one Lloyd
-// step on the output triangulation, cf. Alliez et al. 2003, "Isotropic surface remeshing"),
-// re-projected onto the input surface. Connectivity changes only by flips: vertex and face
-// counts, boundary, manifoldness and genus are unchanged.
+// relaxation of free vertices towards the mean of their neighbours (tangential smoothing as in
+// Botsch & Kobbelt 2004, "A remeshing approach to multiresolution modeling"), kept only where
+// the ring's Q improves, then projected back onto the input surface. Connectivity changes
+// only by flips: vertex and face counts, boundary, manifoldness and genus are unchanged.
 #pragma once
 
 #include <cstdint>
@@ -20,7 +20,8 @@ struct MeshOptimizeOptions {
   /// Edge flips only between two triangles whose normals differ by less than this (degrees):
   /// flipping across a bend would move the surface by up to edge·sin(angle)/2.
   double flip_max_dihedral_deg = 10;
-  /// Vertices with an incident edge bent more than this (degrees) are on a feature: never moved.
+  /// Vertices with an incident edge bent more than this (degrees) between two non-sliver
+  /// triangles are on a feature: never moved.
   double feature_angle_deg = 45;
   /// The feature angle remesh() uses instead for the Q metrics (IQ, AQ): their vertices are QEM
   /// points, off the surface wherever the ring bends; only nearly flat rings move.
@@ -30,8 +31,9 @@ struct MeshOptimizeOptions {
   /// on the surface (projected centroids) and land on it.
   bool keep_surface_offset = false;
   uint32_t relax_iterations = 2;  ///< relaxation sweeps (each followed by flips where vertices moved); 0 = flips only
-  double relax_step = 1.0;        ///< fraction of the way to the 1-ring centroid moved per sweep
-  /// A move is rejected when an incident triangle's normal turns by more than this (degrees).
+  double relax_step = 1.0;        ///< fraction of the way to the neighbours' mean moved per sweep
+  /// A move is rejected when an incident triangle's normal turns by more than this (degrees);
+  /// slivers (Q < 0.2) may turn further, but not over.
   double max_normal_change_deg = 15;
 };
 

@@ -266,6 +266,26 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
     defects = find_manifold_defects(dual.mesh.view());
   }
   result.defect_vertices = defects.size();
+  if (options.optimize_quality) {  // flips keep V, F, boundary and genus; moves stay on the input
+    t = std::chrono::steady_clock::now();
+    MeshOptimizeOptions optimize = options.optimize;
+    if (!options.project_to_surface) optimize.relax_iterations = 0;  // raw centroids asked for: flips only
+    if (uses_quadrics(metric)) {  // QEM points: only nearly flat rings move, keeping their height
+      optimize.feature_angle_deg = optimize.qem_feature_angle_deg;
+      optimize.keep_surface_offset = true;
+    }
+    std::vector<uint8_t> movable(dual.mesh.vertex_count(), 0);
+    std::vector<uint32_t> anchors(dual.mesh.vertex_count(), UINT32_MAX);
+    if (optimize.relax_iterations > 0) {
+      movable = remesh_movable_vertices(labels, result.budget, dual.cluster_of_output_vertex);
+      anchors = cluster_anchor_faces(mesh, labels, dual.cluster_of_output_vertex, dual.mesh.positions);
+    }
+    const MeshOptimizeReport q =
+        optimize_mesh_quality(dual.mesh.positions, dual.mesh.triangles, movable, &mesh, anchors, optimize);
+    result.quality_flips = q.flips;
+    result.quality_moves = q.moves;
+    result.seconds.optimize = seconds_since(t);
+  }
   if (dual.mesh.face_count() == 0 && mesh.face_count() > 0)
     throw InputError("cannot build a valid surface with N=" + std::to_string(options.vertices) +
                      " vertices: the mesh's features are thinner than a cluster at this budget; use a larger N");

@@ -9,6 +9,7 @@
 #include "core/clustering.h"
 #include "core/dual_mesh.h"
 #include "core/mesh_buffers.h"
+#include "core/mesh_optimize.h"
 #include "core/mesh_view.h"
 
 namespace streamcvd {
@@ -27,10 +28,14 @@ struct RemeshOptions {
   /// Gradation γ of eq. 20: ρ_j multiplied by the clamped curvature magnitude to the power γ
   /// (0 = uniform). With A/AQ it shapes only the initial sampling, as in the paper.
   double gradation = 0;
+  /// Quality post-pass on the output (core/mesh_optimize.h): flips between nearly coplanar
+  /// triangles and tangential relaxation of vertices off features, re-projected onto the input.
+  bool optimize_quality = true;
+  MeshOptimizeOptions optimize;
 };
 
 struct StageTimes {
-  double curvature = 0, items = 0, sampling = 0, clustering = 0, repair = 0, dual = 0;
+  double curvature = 0, items = 0, sampling = 0, clustering = 0, repair = 0, dual = 0, optimize = 0;
 };
 
 struct RemeshResult {
@@ -52,6 +57,7 @@ struct RemeshResult {
   uint64_t duplicate_faces_removed = 0;
   uint64_t boundary_vertices_added = 0;
   uint64_t holes_closed = 0;
+  uint64_t quality_flips = 0, quality_moves = 0;  ///< edits of the quality post-pass
   bool clusters_connected = false;
   int64_t input_euler_characteristic = 0, output_euler_characteristic = 0;
   /// Closed input whose output lost or gained handles, or had holes opened by the last-resort

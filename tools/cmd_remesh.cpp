@@ -25,7 +25,7 @@ struct RemeshArgs {
   uint32_t vertices = 10000;
   uint32_t threads = 0;
   uint64_t seed = RemeshOptions{}.seed;
-  bool no_strips = false, no_project = false, ascii = false, quiet = false;
+  bool no_strips = false, no_project = false, no_optimize = false, ascii = false, quiet = false;
 };
 
 // The output guarantees of a run (issue: closed manifold in → closed, oriented manifold out).
@@ -108,6 +108,8 @@ void add_remesh_command(CLI::App& app) {
   cmd->add_flag("--no-boundary-strips", args->no_strips, "Do not add the triangle strips along input boundaries (§VI-D)");
   cmd->add_flag("--no-project", args->no_project,
                 "Output vertices at the raw cluster centroids (eq. 15) instead of projected onto the input surface");
+  cmd->add_flag("--no-optimize", args->no_optimize,
+                "Skip the quality post-pass (edge flips between nearly coplanar triangles, tangential relaxation)");
   cmd->add_flag("--ascii", args->ascii, "Write ascii PLY");
   cmd->add_flag("-q,--quiet", args->quiet, "No summary on stderr");
   cmd->add_option("--threads", args->threads,
@@ -129,6 +131,7 @@ void add_remesh_command(CLI::App& app) {
     options.remesh.clustering.qem_threshold = args->qem_threshold;
     options.remesh.boundary_strips = !args->no_strips;
     options.remesh.project_to_surface = !args->no_project;
+    options.remesh.optimize_quality = !args->no_optimize;
     options.remesh.small_components = args->small_components == "drop" ? SmallComponents::Drop : SmallComponents::Keep;
     if (args->subdivide == "auto") options.subdivide = -1;
     else if (args->subdivide == "none") options.subdivide = 0;
@@ -197,7 +200,7 @@ void add_remesh_command(CLI::App& app) {
                       {"subdivide", r.subdivide_seconds}, {"curvature", rm.seconds.curvature},
                       {"items", rm.seconds.items},
                       {"sampling", rm.seconds.sampling},  {"clustering", rm.seconds.clustering},
-                      {"repair", rm.seconds.repair},      {"dual", rm.seconds.dual},
+                      {"repair", rm.seconds.repair},      {"dual", rm.seconds.dual},         {"optimize", rm.seconds.optimize},
                       {"write", write_seconds},           {"total", total}};
       j["clustering"] = {{"clusters", rm.clusters},
                          {"unconstrained_loops", cr.unconstrained_loops},
@@ -217,6 +220,7 @@ void add_remesh_command(CLI::App& app) {
                          {"qem_sites_reverted", rm.sites_reverted},
                          {"defect_faces_removed", rm.defect_faces_removed},
                          {"defect_vertices_removed", rm.defect_vertices_removed}};
+      j["quality_pass"] = {{"enabled", !args->no_optimize}, {"flips", rm.quality_flips}, {"moves", rm.quality_moves}};
       j["components"] = {{"count", rm.budget.clusters_per_component.size()},
                          {"small_kept", rm.budget.small_components_kept},
                          {"dropped", rm.budget.components_dropped}};

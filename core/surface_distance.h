@@ -4,6 +4,7 @@
 // per direction and the symmetric Hausdorff distance (DESIGN.md §9).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -64,6 +65,14 @@ struct DistanceReport {
   /// `absolute / diagonal`, or 0 when the diagonal is 0 (A is a single point).
   double relative(double absolute) const { return diagonal > 0 ? absolute / diagonal : 0.0; }
   double relative_hausdorff() const { return relative(hausdorff); }
+  /// RMS over the samples of both sides pooled: √((n_a·rms_a² + n_b·rms_b²)/(n_a + n_b)), the
+  /// "two-sided RMS distance" benchmarks quote.
+  double two_sided_rms() const {
+    const double n = double(a_to_b.samples) + double(b_to_a.samples);
+    return n > 0 ? std::sqrt((double(a_to_b.samples) * a_to_b.rms * a_to_b.rms +
+                              double(b_to_a.samples) * b_to_a.rms * b_to_a.rms) / n)
+                 : 0.0;
+  }
 };
 
 /// Metro distance between surfaces A and B: each side is sampled on its referenced vertices plus

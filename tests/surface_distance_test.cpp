@@ -379,3 +379,21 @@ TEST(SurfaceDistance, DISABLED_MillionSamplesAgainstMillionFaces) {
 
 }  // namespace
 }  // namespace streamcvd
+
+namespace streamcvd {
+namespace {
+
+TEST(SurfaceDistanceReport, TwoSidedRmsPoolsBothSides) {
+  DistanceReport d;
+  d.a_to_b.rms = 3.0;
+  d.a_to_b.samples = 100;
+  d.b_to_a.rms = 1.0;
+  d.b_to_a.samples = 300;
+  EXPECT_NEAR(d.two_sided_rms(), std::sqrt((100 * 9.0 + 300 * 1.0) / 400), 1e-12);
+  d.b_to_a.samples = 100;
+  EXPECT_NEAR(d.two_sided_rms(), std::sqrt(5.0), 1e-12);
+  EXPECT_EQ(DistanceReport{}.two_sided_rms(), 0.0);
+}
+
+}  // namespace
+}  // namespace streamcvd

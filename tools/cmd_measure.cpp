@@ -138,6 +138,8 @@ void add_distance_command(CLI::App& app) {
       nlohmann::json j = distance_json(d);
       j["a"] = args->a;
       j["b"] = args->b;
+      j["two_sided_rms"] = d.two_sided_rms();
+      j["two_sided_rms_relative"] = d.relative(d.two_sided_rms());
       j["a_faces"] = a.view().face_count();
       j["b_faces"] = b.view().face_count();
       j["samples_per_side"] = args->samples;
@@ -154,6 +156,8 @@ void add_distance_command(CLI::App& app) {
     std::printf("  %-9s %23s %23s %23s\n", "", "max (% diag)", "mean (% diag)", "RMS (% diag)");
     print_side("A -> B", d.a_to_b, d);
     print_side("B -> A", d.b_to_a, d);
+    std::printf("  RMS both  %12.6g (%7.4f%% of the diagonal; both sides' samples pooled)\n", d.two_sided_rms(),
+                100 * d.relative(d.two_sided_rms()));
     std::printf("  Hausdorff %12.6g (%7.4f%% of the diagonal)\n", d.hausdorff, 100 * d.relative_hausdorff());
     std::printf("  time      load %.2f s, distance %.2f s; peak %.0f MB\n", t1 - t0, t2 - t1,
                 double(peak_rss_bytes()) / 1e6);

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <ctime>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -19,6 +20,11 @@ namespace {
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// CPU seconds used by the whole process so far (all threads).
+double process_cpu_seconds() {
+  return double(std::clock()) / CLOCKS_PER_SEC;
 }
 
 // Output position of every cluster: its site under the metric (centroid, anisotropic centroid,
@@ -183,8 +189,10 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   result.seconds.sampling = seconds_since(t);
 
   t = std::chrono::steady_clock::now();
+  const double cpu0 = process_cpu_seconds();
   result.clustering = minimize_clustering(mesh, items, labels, K, options.clustering);
   result.seconds.clustering = seconds_since(t);
+  result.seconds.clustering_cpu = process_cpu_seconds() - cpu0;
 
   // Compensating merges/splits of the repair stay in components with many clusters.
   std::vector<uint8_t> adjustable(K, 0);
@@ -242,6 +250,9 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
     relax.max_loops = options.clustering.max_loops;
     relax.skip_unchanged = options.clustering.skip_unchanged;
     relax.offset_update_loops = options.clustering.offset_update_loops;
+    relax.threads = options.clustering.threads;
+    relax.deterministic = options.clustering.deterministic;
+    relax.region_vertices = options.clustering.region_vertices;
     run_clustering_loops(mesh, items, labels, state, relax, result.clustering, ever_touched);
     DualMesh relaxed = build_dual_mesh(mesh, labels, K, metric_sites(items, labels, K, metric, options.clustering.qem_threshold), dual_options, &boundary_loops);
     if (find_manifold_defects(relaxed.mesh.view()).empty()) {

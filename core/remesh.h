@@ -31,6 +31,7 @@ struct RemeshOptions {
 
 struct StageTimes {
   double curvature = 0, items = 0, sampling = 0, clustering = 0, repair = 0, dual = 0;
+  double clustering_cpu = 0;  ///< CPU seconds of all threads during the clustering stage
 };
 
 struct RemeshResult {

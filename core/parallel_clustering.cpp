@@ -26,6 +26,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <thread>
 
 #include "core/connectivity_check.h"
 
@@ -61,8 +62,12 @@ struct alignas(64) ClusterLock {
   void unlock() { held.store(0, std::memory_order_release); }
 };
 
+// Threads of the running pass (set by run_parallel_clustering_loops on the calling thread).
+thread_local uint32_t tls_threads = 1;
+
+#if !defined(__SANITIZE_THREAD__)
 // Runs fn(i) for i in [0, n) as TBB tasks of about `grain` indices (work stealing). The atomic
-// hand-over makes the ordering visible to ThreadSanitizer, which does not see inside libtbb.
+// hand-over orders the caller's writes before the tasks and the tasks' before the return.
 template <class Fn>
 void for_each_block(uint32_t n, uint32_t grain, const Fn& fn) {
   std::atomic<uint32_t> sync{0};
@@ -74,6 +79,25 @@ void for_each_block(uint32_t n, uint32_t grain, const Fn& fn) {
   });
   (void)sync.load(std::memory_order_acquire);
 }
+#else
+// ThreadSanitizer build: the Debian libtbb is not instrumented, so TSan cannot see the
+// synchronisation inside its scheduler and reports every hand-over as a race. Here the same
+// blocks run on tls_threads std::threads taking blocks from an atomic counter (dynamic
+// scheduling, like stealing), whose start and join TSan does see: the clustering's own
+// synchronisation (cluster locks, atomic labels, ownership) is what the sanitizer then checks.
+template <class Fn>
+void for_each_block(uint32_t n, uint32_t grain, const Fn& fn) {
+  std::atomic<uint32_t> next{0};
+  auto work = [&] {
+    for (uint32_t b; (b = next.fetch_add(grain, std::memory_order_relaxed)) < n;)
+      for (uint32_t i = b; i < std::min(n, b + grain); ++i) fn(i);
+  };
+  std::vector<std::thread> helpers;
+  for (uint32_t t = 1; t < tls_threads; ++t) helpers.emplace_back(work);
+  work();
+  for (std::thread& h : helpers) h.join();
+}
+#endif
 
 // One region per task.
 template <class Fn>
@@ -514,6 +538,7 @@ uint32_t run_parallel_clustering_loops(const MeshView& mesh, const ItemData& ite
   const uint32_t threads = clustering_thread_count(options.threads);
   tbb::task_arena arena(int(std::min<uint32_t>(threads, 4096)));
   uint32_t loops = 0;
+  tls_threads = threads;
   arena.execute([&] {
     const bool aniso = !state.aniso.empty(), offsets = state.use_offsets;
     if (aniso)

@@ -208,6 +208,7 @@ void add_remesh_command(CLI::App& app) {
                          {"cleaned_vertices", cr.cleaned_vertices},
                          {"disconnected_clusters_cleaned", cr.disconnected_clusters},
                          {"final_energy", rm.final_energy},
+                         {"clustering_energy", cr.final_energy},
                          {"repair_rounds", rm.repair_rounds_used},
                          {"repaired_clusters", rm.repaired_clusters},
                          {"repair_splits", rm.repair_splits},

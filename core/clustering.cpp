@@ -238,17 +238,25 @@ ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items
   // First convergence with centroid sites (I or A); the Q metrics then embed the QEM sites
   // (§V-C) and converge again before the cleaning.
   const Metric base = is_anisotropic(options.metric) ? Metric::A : Metric::I;
+  // The parallel path also spreads the site solves and the cleaning over the threads (same
+  // results as the serial calls; the serial path is left exactly as it was).
+  const bool parallel = options.threads != 1 || options.deterministic;
+  auto solve_sites = [&](ClusterState& s) {
+    if (parallel) parallel_update_site_offsets(s, options.threads);
+    else update_site_offsets(s);
+  };
   ClusterState state = make_cluster_state(items, labels, cluster_count, base);
   report.unconstrained_loops = run_clustering_loops(mesh, items, labels, state, loop, report);
   if (uses_quadrics(options.metric)) {
     state = make_cluster_state(items, labels, cluster_count, options.metric, options.qem_threshold);
-    update_site_offsets(state);
+    solve_sites(state);
     report.unconstrained_loops += run_clustering_loops(mesh, items, labels, state, loop, report);
   }
-  clean_clusters(mesh, items, labels, cluster_count, report);
+  if (parallel) parallel_clean_clusters(mesh, items, labels, cluster_count, report, options.threads);
+  else clean_clusters(mesh, items, labels, cluster_count, report);
   // Incremental sums drift: rebuild them before the constrained pass (DESIGN.md §3).
   state = make_cluster_state(items, labels, cluster_count, options.metric, options.qem_threshold);
-  update_site_offsets(state);
+  solve_sites(state);
   loop.constrained = true;
   loop.stop_fraction = 0.0;
   report.constrained_loops = run_clustering_loops(mesh, items, labels, state, loop, report);

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "core/clustering.h"
 #include "core/item_data.h"
 #include "core/mesh_stats.h"
 #include "core/metric_field.h"
@@ -211,6 +212,34 @@ TEST(ParallelClustering, DeterministicModeIsByteIdenticalForAnyThreadCount) {
     }
   }
   std::filesystem::remove_all(dir);
+}
+
+TEST(ParallelClustering, ParallelCleaningMatchesTheSerialOne) {
+  // Random labels: clusters in many pieces. The parallel union-find keeps the same piece of
+  // each cluster as the serial BFS, and re-absorbs the rest identically, for any thread count.
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, kTbbThreads);
+  const MeshBuffers elephant = read_mesh(test::data_path("cgal_elephant.off"));
+  MeshStore store = MeshStore::build(elephant.view());
+  const MeshView view = store.view();
+  const ItemData items = compute_item_data(view);
+  std::mt19937 rng(7);
+  for (uint32_t K : {3u, 40u, 400u}) {
+    std::vector<int32_t> random(view.vertex_count());
+    for (int32_t& l : random) l = int32_t(rng() % K);
+    std::vector<int32_t> serial = random;
+    ClusteringReport serial_report;
+    const uint64_t serial_reset = clean_clusters(view, items, serial, K, serial_report);
+    ASSERT_GT(serial_report.disconnected_clusters, 0u);
+    EXPECT_TRUE(clusters_connected(view, serial, K));
+    for (uint32_t threads : {1u, 2u, 8u}) {
+      std::vector<int32_t> labels = random;
+      ClusteringReport report;
+      EXPECT_EQ(parallel_clean_clusters(view, items, labels, K, report, threads), serial_reset) << K << " T=" << threads;
+      EXPECT_EQ(report.disconnected_clusters, serial_report.disconnected_clusters);
+      EXPECT_EQ(report.cleaned_vertices, serial_report.cleaned_vertices);
+      EXPECT_TRUE(labels == serial) << K << " T=" << threads;
+    }
+  }
 }
 
 TEST(ParallelClustering, SerialPathUnchangedByTheNewOptions) {

@@ -29,15 +29,21 @@
 #include <thread>
 
 #include "core/connectivity_check.h"
+#include "core/parallel_blocks.h"
 
 namespace streamcvd {
 
 namespace {
 
+using detail::for_each_block;
+using detail::for_each_region;
+using detail::tls_threads;
+
 constexpr int32_t kShared = -1;  // owner of a cluster that no single region holds alone
 constexpr int32_t kUnseen = -2;
 constexpr uint32_t kNone = UINT32_MAX;
 constexpr uint32_t kMaxRegions = 65535;
+constexpr size_t kSerialBelow = 2048;  // candidate vertices below which a sweep runs on one thread
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -62,48 +68,6 @@ struct alignas(64) ClusterLock {
   void unlock() { held.store(0, std::memory_order_release); }
 };
 
-// Threads of the running pass (set by run_parallel_clustering_loops on the calling thread).
-thread_local uint32_t tls_threads = 1;
-
-#if !defined(__SANITIZE_THREAD__)
-// Runs fn(i) for i in [0, n) as TBB tasks of about `grain` indices (work stealing). The atomic
-// hand-over orders the caller's writes before the tasks and the tasks' before the return.
-template <class Fn>
-void for_each_block(uint32_t n, uint32_t grain, const Fn& fn) {
-  std::atomic<uint32_t> sync{0};
-  sync.store(1, std::memory_order_release);
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, n, grain), [&](const tbb::blocked_range<uint32_t>& range) {
-    (void)sync.load(std::memory_order_acquire);
-    for (uint32_t i = range.begin(); i != range.end(); ++i) fn(i);
-    sync.fetch_add(1, std::memory_order_acq_rel);
-  });
-  (void)sync.load(std::memory_order_acquire);
-}
-#else
-// ThreadSanitizer build: the Debian libtbb is not instrumented, so TSan cannot see the
-// synchronisation inside its scheduler and reports every hand-over as a race. Here the same
-// blocks run on tls_threads std::threads taking blocks from an atomic counter (dynamic
-// scheduling, like stealing), whose start and join TSan does see: the clustering's own
-// synchronisation (cluster locks, atomic labels, ownership) is what the sanitizer then checks.
-template <class Fn>
-void for_each_block(uint32_t n, uint32_t grain, const Fn& fn) {
-  std::atomic<uint32_t> next{0};
-  auto work = [&] {
-    for (uint32_t b; (b = next.fetch_add(grain, std::memory_order_relaxed)) < n;)
-      for (uint32_t i = b; i < std::min(n, b + grain); ++i) fn(i);
-  };
-  std::vector<std::thread> helpers;
-  for (uint32_t t = 1; t < tls_threads; ++t) helpers.emplace_back(work);
-  work();
-  for (std::thread& h : helpers) h.join();
-}
-#endif
-
-// One region per task.
-template <class Fn>
-void for_each_region(uint32_t n, const Fn& fn) {
-  for_each_block(n, 1, fn);
-}
 
 // Contiguous vertex ranges (Hilbert order: spatially compact) and, per vertex, whether all its
 // neighbours lie in its own range.
@@ -280,7 +244,7 @@ class ParallelLoop {
 // census, the same whatever the thread count.
 template <bool kAniso, bool kOffsets>
 void ParallelLoop<kAniso, kOffsets>::compute_owners(const Census& census) {
-  for_each_block(K_, 4096, [&](uint32_t c) {
+  auto owner_of = [&](uint32_t c) {
     const uint64_t n = state_.iso[c].count;
     int32_t owner = kShared;
     if (n > 0 && census.boundary[c] == 0 && census.sum[c] % n == 0) {
@@ -288,7 +252,13 @@ void ParallelLoop<kAniso, kOffsets>::compute_owners(const Census& census) {
       if (census.sum2[c] == n * r * r) owner = int32_t(r);
     }
     owner_[c].store(owner, std::memory_order_relaxed);
-  });
+  };
+  // A fork-join costs more than ~10^5 of these O(1) tests.
+  if (K_ < (1u << 17)) {
+    for (uint32_t c = 0; c < K_; ++c) owner_of(c);
+  } else {
+    for_each_block(K_, 1u << 14, owner_of);
+  }
 }
 
 template <bool kAniso, bool kOffsets>
@@ -492,7 +462,15 @@ uint32_t ParallelLoop<kAniso, kOffsets>::run(ClusteringReport& report, std::span
       // region borders do not lag a loop behind. Deterministic mode: in the next phase.
       const int sweeps = options_.deterministic ? 1 : 4;
       for (int sweep = 0; sweep < sweeps; ++sweep) {
-        for_each_region(uint32_t(works_.size()), [&](uint32_t r) { run_region(partitions[i], r, works_[r], loop); });
+        size_t pending = 0;
+        for (const RegionWork& w : works_) pending += w.cand.size() - w.start;
+        auto run = [&](uint32_t r) { run_region(partitions[i], r, works_[r], loop); };
+        // A short list (the late loops, the extra sweeps) is not worth waking the other threads.
+        if (pending < kSerialBelow) {
+          for (uint32_t r = 0; r < works_.size(); ++r) run(r);
+        } else {
+          for_each_region(uint32_t(works_.size()), run);
+        }
         // Outboxes in region order (deterministic), then the postponed vertices.
         bool listed_any = false;
         for (RegionWork& w : works_) {
@@ -508,7 +486,7 @@ uint32_t ParallelLoop<kAniso, kOffsets>::run(ClusteringReport& report, std::span
     report.moves_per_loop.push_back(moves);
     report.energy_per_loop.push_back(state_energy(items_, state_));
     if (kOffsets && moves > 0 && loops < options_.offset_update_loops) {
-      for_each_block(K_, 256, [&](uint32_t c) {
+      for_each_block(K_, 1024, [&](uint32_t c) {
         if (changed_in_[c].load(std::memory_order_relaxed) == loop) update_site_offset(state_, c);
       });
     }
@@ -527,88 +505,7 @@ uint32_t run_loops(const MeshView& mesh, const ItemData& items, std::span<int32_
   return loop.run(report, initially_active, threads);
 }
 
-// The pieces of every cluster by a lock-free union-find over the edges joining two vertices of
-// one cluster (the larger root is linked under the smaller, so each piece's final root is its
-// smallest vertex whatever the interleaving); then the same choice as clean_clusters: per
-// cluster the heaviest piece, the first in vertex order on a tie.
-uint64_t clean_in_arena(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels, uint32_t K,
-                        ClusteringReport& report) {
-  const uint32_t V = mesh.vertex_count();
-  constexpr uint32_t kBlock = 4096;
-  std::vector<std::atomic<uint32_t>> parent(V);
-  for_each_block(V, kBlock, [&](uint32_t v) { parent[v].store(v, std::memory_order_relaxed); });
-  auto find = [&](uint32_t x) {
-    for (uint32_t p; (p = parent[x].load(std::memory_order_relaxed)) != x;) {
-      const uint32_t g = parent[p].load(std::memory_order_relaxed);
-      if (g != p) parent[x].compare_exchange_weak(p, g, std::memory_order_relaxed);  // path halving
-      x = g;
-    }
-    return x;
-  };
-  for_each_block(V, kBlock, [&](uint32_t u) {
-    const int32_t l = labels[u];
-    if (l < 0) return;
-    for (uint32_t n : mesh.neighbours(u)) {
-      if (n <= u || labels[n] != l) continue;
-      for (uint32_t a = u, b = n;;) {
-        a = find(a);
-        b = find(b);
-        if (a == b) break;
-        if (a > b) std::swap(a, b);
-        uint32_t expected = b;  // link root b under the smaller root a
-        if (parent[b].compare_exchange_strong(expected, a, std::memory_order_relaxed)) break;
-      }
-    }
-  });
-  std::vector<uint32_t> root(V);
-  for_each_block(V, kBlock, [&](uint32_t v) { root[v] = find(v); });
-  std::vector<double> weight(V, 0.0);
-  for (uint32_t v = 0; v < V; ++v)
-    if (labels[v] >= 0) weight[root[v]] += items.weight[v];
-  std::vector<uint32_t> best(K, UINT32_MAX), pieces(K, 0);
-  for (uint32_t v = 0; v < V; ++v) {
-    const int32_t l = labels[v];
-    if (l < 0 || root[v] != v) continue;
-    ++pieces[l];
-    if (best[l] == UINT32_MAX || weight[v] > weight[best[l]]) best[l] = v;
-  }
-  for (uint32_t c = 0; c < K; ++c) report.disconnected_clusters += pieces[c] > 1;
-  uint64_t reset = 0;
-  for (uint32_t v = 0; v < V; ++v)
-    if (labels[v] >= 0 && best[labels[v]] != root[v]) {
-      labels[v] = -1;
-      ++reset;
-    }
-  if (reset) absorb_free_vertices(mesh, labels);
-  report.cleaned_vertices += reset;
-  return reset;
-}
-
 }  // namespace
-
-uint64_t parallel_clean_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                                 uint32_t cluster_count, ClusteringReport& report, uint32_t threads) {
-  threads = clustering_thread_count(threads);
-  tbb::task_arena arena(int(std::min<uint32_t>(threads, 4096)));
-  tls_threads = threads;
-  uint64_t reset = 0;
-  arena.execute([&] { reset = clean_in_arena(mesh, items, labels, cluster_count, report); });
-  return reset;
-}
-
-void parallel_update_site_offsets(ClusterState& state, uint32_t threads) {
-  if (state.quadric.empty()) return;
-  state.use_offsets = true;
-  threads = clustering_thread_count(threads);
-  tbb::task_arena arena(int(std::min<uint32_t>(threads, 4096)));
-  tls_threads = threads;
-  arena.execute([&] { for_each_block(state.cluster_count(), 256, [&](uint32_t c) { update_site_offset(state, c); }); });
-}
-
-uint32_t clustering_thread_count(uint32_t threads) {
-  if (threads > 0) return threads;
-  return uint32_t(std::max<size_t>(1, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
-}
 
 uint32_t run_parallel_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                                        ClusterState& state, const LoopOptions& options, ClusteringReport& report,

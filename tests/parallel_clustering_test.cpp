@@ -31,7 +31,8 @@ namespace {
 
 #if defined(__SANITIZE_THREAD__)
 // ThreadSanitizer cannot see inside the uninstrumented libtbb: the other stages run TBB on one
-// thread, and the clustering's regions run on std::threads (core/parallel_clustering.cpp).
+// thread (every test here sets kTbbThreads), and the clustering's regions run on std::threads
+// (core/parallel_blocks.h).
 constexpr bool kThreadSanitizer = true;
 constexpr uint32_t kTbbThreads = 1;
 #else
@@ -244,6 +245,7 @@ TEST(ParallelClustering, ParallelCleaningMatchesTheSerialOne) {
 
 TEST(ParallelClustering, SerialPathUnchangedByTheNewOptions) {
   // threads = 1 without deterministic is the serial loop: identical to the default options.
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, kTbbThreads);
   const MeshBuffers torus = make_torus(60, 24);
   MeshStore store = MeshStore::build(torus.view());
   RemeshOptions a;
@@ -280,7 +282,7 @@ TEST(ParallelClustering, StressManySmallRandomRuns) {
   }
   const Metric metrics[] = {Metric::I, Metric::IQ, Metric::A, Metric::AQ};
   std::mt19937_64 rng(20240605);
-  const int runs = kThreadSanitizer ? 40 : 300;
+  const int runs = kThreadSanitizer ? 120 : 300;
   int topology_changes = 0;
   for (int i = 0; i < runs; ++i) {
     const size_t s = rng() % shapes.size();

@@ -110,33 +110,35 @@ ClusterState make_cluster_state(const ItemData& items, std::span<const int32_t> 
   return s;
 }
 
+void update_site_offset(ClusterState& s, size_t c) {
+  double* d = &s.offset[3 * c];
+  const double* centre = centroid_of(s, c);
+  if (s.iso[c].count == 0) {
+    d[0] = d[1] = d[2] = 0;
+    return;
+  }
+  // Truncate more of the quadric's spectrum while the QEM point lies outside its cluster: on
+  // a noisy scan the small eigenvalues are noise and the full solve lands far off the surface,
+  // while a true corner or crease point lies within the cluster (radius ~ √(W/π)).
+  const double limit2 = kMaxOffsetPerRootWeight * kMaxOffsetPerRootWeight * s.iso[c].weight;
+  for (double threshold : {s.qem_threshold, 5e-2, 0.25}) {
+    double z[3];
+    const int rank = qem_point(s.quadric[c].q, s.quadric[c].q + 6, centre, threshold, z);
+    for (int k = 0; k < 3; ++k) d[k] = std::isfinite(z[k]) ? z[k] - centre[k] : 0.0;
+    if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= limit2 || rank <= 1) break;
+  }
+  const double d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  if (d2 > limit2) {
+    const double scale = std::sqrt(limit2 / d2);
+    for (int k = 0; k < 3; ++k) d[k] *= scale;
+  }
+}
+
 void update_site_offsets(ClusterState& s, std::span<const uint8_t> changed) {
   if (s.quadric.empty()) return;
   s.use_offsets = true;
-  for (size_t c = 0; c < s.iso.size(); ++c) {
-    if (!changed.empty() && !changed[c]) continue;
-    double* d = &s.offset[3 * c];
-    const double* centre = centroid_of(s, c);
-    if (s.iso[c].count == 0) {
-      d[0] = d[1] = d[2] = 0;
-      continue;
-    }
-    // Truncate more of the quadric's spectrum while the QEM point lies outside its cluster: on
-    // a noisy scan the small eigenvalues are noise and the full solve lands far off the surface,
-    // while a true corner or crease point lies within the cluster (radius ~ √(W/π)).
-    const double limit2 = kMaxOffsetPerRootWeight * kMaxOffsetPerRootWeight * s.iso[c].weight;
-    for (double threshold : {s.qem_threshold, 5e-2, 0.25}) {
-      double z[3];
-      const int rank = qem_point(s.quadric[c].q, s.quadric[c].q + 6, centre, threshold, z);
-      for (int k = 0; k < 3; ++k) d[k] = std::isfinite(z[k]) ? z[k] - centre[k] : 0.0;
-      if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= limit2 || rank <= 1) break;
-    }
-    const double d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    if (d2 > limit2) {
-      const double scale = std::sqrt(limit2 / d2);
-      for (int k = 0; k < 3; ++k) d[k] *= scale;
-    }
-  }
+  for (size_t c = 0; c < s.iso.size(); ++c)
+    if (changed.empty() || changed[c]) update_site_offset(s, c);
 }
 
 double state_energy(const ItemData& items, const ClusterState& s) {

@@ -75,6 +75,10 @@ ClusterState make_cluster_state(const ItemData& items, std::span<const int32_t> 
 /// when `changed` is empty) and sets use_offsets. O(K) 3×3 eigen-solves; thread-safe per cluster.
 void update_site_offsets(ClusterState& state, std::span<const uint8_t> changed = {});
 
+/// The offset d_c of one cluster (state must carry quadrics; use_offsets is the caller's).
+/// O(1); thread-safe for distinct clusters (the parallel loop updates clusters concurrently).
+void update_site_offset(ClusterState& state, size_t c);
+
 /// The energy of eq. 12/16 minus its configuration-independent part Σ A_j: Σ_i Σ_j
 /// M_j‖γ_j − z_i‖² (iso) or Σ_i Σ_j (γ_j − z_i)ᵀK_j(γ_j − z_i) (aniso), with the current sites.
 /// O(K), fixed order.

@@ -7,6 +7,9 @@
 #include <chrono>
 #include <cmath>
 
+#include "core/connectivity_check.h"
+#include "core/parallel_clustering.h"
+
 namespace streamcvd {
 
 namespace {
@@ -15,45 +18,8 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Removing v from cluster `a` keeps `a` connected when v's neighbours in `a` are connected
-// through the triangles around v (§VI-B: a check on the vertex 1-ring). Conservative: false
-// when the 1-ring is too large to check.
 bool removal_keeps_connected(const MeshView& mesh, std::span<const int32_t> labels, uint32_t v, int32_t a) {
-  uint32_t ids[64];
-  uint8_t parent[64];
-  int n = 0;
-  for (uint32_t u : mesh.neighbours(v))
-    if (labels[u] == a) {
-      if (n == 64) return false;
-      parent[n] = uint8_t(n);
-      ids[n++] = u;
-    }
-  if (n <= 1) return n == 1;
-  auto find = [&](uint8_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
-  auto index_of = [&](uint32_t u) {
-    for (int i = 0; i < n; ++i)
-      if (ids[i] == u) return i;
-    return -1;
-  };
-  int groups = n;
-  const uint32_t* T = mesh.triangles.data();
-  for (uint32_t f : mesh.faces_of(v)) {
-    uint32_t c0 = T[3 * f], c1 = T[3 * f + 1], c2 = T[3 * f + 2];
-    uint32_t p = c0 == v ? c1 : c0, q = c2 == v ? c1 : c2;
-    if (c1 == v) { p = c0; q = c2; }
-    if (labels[p] != a || labels[q] != a || p == q) continue;
-    int ip = index_of(p), iq = index_of(q);
-    if (ip < 0 || iq < 0) continue;
-    uint8_t rp = find(uint8_t(ip)), rq = find(uint8_t(iq));
-    if (rp != rq) {
-      parent[rp] = rq;
-      --groups;
-    }
-  }
-  return groups == 1;
+  return detail::removal_keeps_connected(mesh, [&](uint32_t u) { return labels[u]; }, v, a);
 }
 
 }  // namespace
@@ -180,6 +146,8 @@ uint32_t clustering_loops(const MeshView& mesh, const ItemData& items, std::span
 uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels, ClusterState& state,
                               const LoopOptions& options, ClusteringReport& report,
                               std::span<const uint8_t> initially_active) {
+  if (options.threads != 1 || options.deterministic)
+    return run_parallel_clustering_loops(mesh, items, labels, state, options, report, initially_active);
   const bool aniso = !state.aniso.empty(), offsets = state.use_offsets;
   if (aniso) {
     return offsets ? clustering_loops<true, true>(mesh, items, labels, state, options, report, initially_active)
@@ -264,20 +232,31 @@ ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items
   loop.skip_unchanged = options.skip_unchanged;
   loop.offset_update_loops = options.offset_update_loops;
   loop.on_loop = options.on_loop;
+  loop.threads = options.threads;
+  loop.deterministic = options.deterministic;
+  loop.region_vertices = options.region_vertices;
   // First convergence with centroid sites (I or A); the Q metrics then embed the QEM sites
   // (§V-C) and converge again before the cleaning.
   const Metric base = is_anisotropic(options.metric) ? Metric::A : Metric::I;
+  // The parallel path also spreads the site solves and the cleaning over the threads (same
+  // results as the serial calls; the serial path is left exactly as it was).
+  const bool parallel = options.threads != 1 || options.deterministic;
+  auto solve_sites = [&](ClusterState& s) {
+    if (parallel) parallel_update_site_offsets(s, options.threads);
+    else update_site_offsets(s);
+  };
   ClusterState state = make_cluster_state(items, labels, cluster_count, base);
   report.unconstrained_loops = run_clustering_loops(mesh, items, labels, state, loop, report);
   if (uses_quadrics(options.metric)) {
     state = make_cluster_state(items, labels, cluster_count, options.metric, options.qem_threshold);
-    update_site_offsets(state);
+    solve_sites(state);
     report.unconstrained_loops += run_clustering_loops(mesh, items, labels, state, loop, report);
   }
-  clean_clusters(mesh, items, labels, cluster_count, report);
+  if (parallel) parallel_clean_clusters(mesh, items, labels, cluster_count, report, options.threads);
+  else clean_clusters(mesh, items, labels, cluster_count, report);
   // Incremental sums drift: rebuild them before the constrained pass (DESIGN.md §3).
   state = make_cluster_state(items, labels, cluster_count, options.metric, options.qem_threshold);
-  update_site_offsets(state);
+  solve_sites(state);
   loop.constrained = true;
   loop.stop_fraction = 0.0;
   report.constrained_loops = run_clustering_loops(mesh, items, labels, state, loop, report);

@@ -57,6 +57,11 @@ struct ClusteringOptions {
   bool skip_unchanged = true;      ///< the modified-clusters skip of §VI-A
   uint32_t offset_update_loops = 5;  ///< Q metrics: loops per pass after which the QEM sites freeze
   double qem_threshold = 1e-2;      ///< Q metrics: relative eigenvalue truncation (ClusterState)
+  /// Clustering threads: 1 = the serial loop (reference output), 0 = all cores, T > 1 = the
+  /// parallel loop of core/parallel_clustering.h (output may differ between runs).
+  uint32_t threads = 1;
+  bool deterministic = false;   ///< parallel loop whose output is the same for every thread count
+  uint32_t region_vertices = 0; ///< parallel loop: target vertices per region (0 = automatic)
   /// Called after every loop with (constrained pass?, loop number, items moved); for progress.
   std::function<void(bool, uint32_t, uint64_t)> on_loop;
 };
@@ -79,6 +84,11 @@ struct LoopOptions {
   uint32_t max_loops = 2000;
   bool skip_unchanged = true;
   uint32_t offset_update_loops = 5;  ///< Q metrics: re-solve the sites of changed clusters until then
+  /// Clustering threads: 1 = the serial loop (reference output), 0 = all cores, T > 1 = the
+  /// parallel loop of core/parallel_clustering.h (output may differ between runs).
+  uint32_t threads = 1;
+  bool deterministic = false;   ///< parallel loop whose output is the same for every thread count
+  uint32_t region_vertices = 0; ///< parallel loop: target vertices per region (0 = automatic)
   std::function<void(bool, uint32_t, uint64_t)> on_loop;
 };
 
@@ -93,7 +103,8 @@ double clustering_energy(const ItemData& items, std::span<const ClusterSums> sum
 /// centroid sites; the Q metrics then embed their QEM sites and converge again), cleaning
 /// (each cluster keeps its heaviest connected piece; the rest is freed and re-absorbed), then
 /// loops with the 1-ring connectivity check until no item moves. Never empties a cluster.
-/// Labels must be a valid initial clustering (every cluster non-empty). Single-threaded.
+/// Labels must be a valid initial clustering (every cluster non-empty). Single-threaded unless
+/// options.threads ≠ 1 or options.deterministic (then the loops run in parallel).
 ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                                      uint32_t cluster_count, const ClusteringOptions& options = {});
 
@@ -102,7 +113,8 @@ ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items
 /// cluster connected, checked on the vertex's 1-ring). Each committed move strictly lowers the
 /// energy at the current sites; Q-metric sites of changed clusters are re-solved between loops.
 /// `initially_active` (size K, or empty = all) marks the clusters whose boundaries need
-/// testing; the others are known stable. Appends to `report`; returns loops run. Single-threaded.
+/// testing; the others are known stable. Appends to `report`; returns loops run. Single-threaded
+/// when options.threads == 1 and not deterministic; otherwise runs the parallel loop.
 uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                               ClusterState& state, const LoopOptions& options, ClusteringReport& report,
                               std::span<const uint8_t> initially_active = {});

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <ctime>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -20,6 +21,11 @@ namespace {
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// CPU seconds used by the whole process so far (all threads).
+double process_cpu_seconds() {
+  return double(std::clock()) / CLOCKS_PER_SEC;
 }
 
 // Output position of every cluster: its site under the metric (centroid, anisotropic centroid,
@@ -200,10 +206,12 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   result.seconds.sampling = seconds_since(t);
 
   t = std::chrono::steady_clock::now();
+  const double cpu0 = process_cpu_seconds();
   const bool lloyd = options.clustering.algorithm == ClusteringOptions::Algorithm::Lloyd;
   result.clustering = lloyd ? lloyd_clustering(mesh, items, labels, K, lloyd_options(options.clustering))
                             : minimize_clustering(mesh, items, labels, K, options.clustering);
   result.seconds.clustering = seconds_since(t);
+  result.seconds.clustering_cpu = process_cpu_seconds() - cpu0;
 
   // Compensating merges/splits of the repair stay in components with many clusters.
   std::vector<uint8_t> adjustable(K, 0);
@@ -226,6 +234,9 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   repair_options.metric = metric;
   repair_options.qem_threshold = options.clustering.qem_threshold;
   repair_options.offset_update_loops = options.clustering.offset_update_loops;
+  repair_options.threads = options.clustering.threads;
+  repair_options.deterministic = options.clustering.deterministic;
+  repair_options.region_vertices = options.clustering.region_vertices;
   repair_options.relax = !lloyd;  // a Lloyd run's report stays pure Lloyd
   DefectRepairResult repair =
       repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options, result.clustering);

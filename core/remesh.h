@@ -36,6 +36,7 @@ struct RemeshOptions {
 
 struct StageTimes {
   double curvature = 0, items = 0, sampling = 0, clustering = 0, repair = 0, dual = 0, optimize = 0;
+  double clustering_cpu = 0;  ///< CPU seconds of all threads during the clustering stage
 };
 
 struct RemeshResult {
@@ -69,7 +70,9 @@ struct RemeshResult {
 /// AQ; §V). The output vertex of each cluster is its site: the centroid projected onto the
 /// surface (I, A) or the QEM point (IQ, AQ); strips add vertices along boundaries. Checks the dual for
 /// non-manifold edges/vertices, isolated vertices and duplicate faces, and repairs the
-/// clustering around each defect (core/repair.h, up to repair_rounds). Single-threaded clustering; deterministic for a seed.
+/// clustering around each defect (core/repair.h, up to repair_rounds). Deterministic for a seed with
+/// clustering.threads = 1 (default) or clustering.deterministic (any thread count); otherwise
+/// the parallel clustering may differ between runs (core/parallel_clustering.h).
 RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options);
 
 }  // namespace streamcvd

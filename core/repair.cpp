@@ -474,6 +474,9 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   relax.max_loops = options.relax_max_loops;
   relax.skip_unchanged = options.skip_unchanged;
   relax.offset_update_loops = options.offset_update_loops;
+  relax.threads = options.threads;
+  relax.deterministic = options.deterministic;
+  relax.region_vertices = options.region_vertices;
   run_clustering_loops(mesh, items, labels, state, relax, report, active);
   for (uint32_t v = 0; v < V; ++v)
     if (before[v] >= 0 && frozen[before[v]]) labels[v] = before[v];

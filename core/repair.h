@@ -51,6 +51,9 @@ struct DefectRepairOptions {
   Metric metric = Metric::I;    ///< energy of the relaxation (ClusteringOptions)
   double qem_threshold = 1e-2;
   uint32_t offset_update_loops = 5;
+  uint32_t threads = 1;         ///< relaxation threads (ClusteringOptions::threads)
+  bool deterministic = false;
+  uint32_t region_vertices = 0;
 };
 
 struct DefectRepairResult {

@@ -9,6 +9,7 @@
 #include "core/errors.h"
 #include "streaming/mesh_io.h"
 #include "streaming/output_file.h"
+#include "core/parallel_clustering.h"
 #include "streaming/remesh_pipeline.h"
 #include "tools/commands.h"
 
@@ -25,7 +26,7 @@ struct RemeshArgs {
   uint32_t vertices = 10000;
   uint32_t threads = 0;
   uint64_t seed = RemeshOptions{}.seed;
-  bool no_strips = false, no_project = false, no_optimize = false, ascii = false, quiet = false;
+  bool no_strips = false, no_project = false, no_optimize = false, ascii = false, quiet = false, deterministic = false;
 };
 
 // The output guarantees of a run (issue: closed manifold in → closed, oriented manifold out).
@@ -113,9 +114,14 @@ void add_remesh_command(CLI::App& app) {
   cmd->add_flag("--ascii", args->ascii, "Write ascii PLY");
   cmd->add_flag("-q,--quiet", args->quiet, "No summary on stderr");
   cmd->add_option("--threads", args->threads,
-                  "Worker threads for the parallel stages (store build, items, sorts); default all cores. "
-                  "The clustering itself is single-threaded in this version")
+                  "Worker threads (store build, items, sorts and the clustering); default all cores. With more "
+                  "than one thread the clustering runs in parallel and, without --deterministic, two runs with "
+                  "the same seed and thread count may give slightly different (equally valid) outputs; "
+                  "--threads 1 is the serial, reproducible clustering")
       ->check(CLI::Range(1u, 4096u));
+  cmd->add_flag("--deterministic", args->deterministic,
+                "Parallel clustering whose output is byte-identical for every thread count and run (lock-free "
+                "phases over fixed regions; slightly slower)");
   cmd->callback([args] {
     PipelineOptions options;
     options.remesh.vertices = args->vertices;
@@ -129,6 +135,8 @@ void add_remesh_command(CLI::App& app) {
     }
     options.remesh.gradation = args->gradation;
     options.remesh.clustering.qem_threshold = args->qem_threshold;
+    options.remesh.clustering.threads = args->threads;  // 0: all cores (within the limit below)
+    options.remesh.clustering.deterministic = args->deterministic;
     options.remesh.boundary_strips = !args->no_strips;
     options.remesh.project_to_surface = !args->no_project;
     options.remesh.optimize_quality = !args->no_optimize;
@@ -185,6 +193,8 @@ void add_remesh_command(CLI::App& app) {
                     {"remeshed_faces", r.remeshed_faces}};
       j["options"] = {{"vertices", args->vertices},
                       {"threads", args->threads},
+                      {"clustering_threads", clustering_thread_count(args->threads)},
+                      {"deterministic", args->deterministic},
                       {"seed", args->seed},
                       {"metric", metric_name(rm.clustering.metric)},
                       {"algorithm", args->algorithm},
@@ -200,6 +210,7 @@ void add_remesh_command(CLI::App& app) {
                       {"subdivide", r.subdivide_seconds}, {"curvature", rm.seconds.curvature},
                       {"items", rm.seconds.items},
                       {"sampling", rm.seconds.sampling},  {"clustering", rm.seconds.clustering},
+                      {"clustering_cpu", rm.seconds.clustering_cpu},
                       {"repair", rm.seconds.repair},      {"dual", rm.seconds.dual},         {"optimize", rm.seconds.optimize},
                       {"write", write_seconds},           {"total", total}};
       j["clustering"] = {{"clusters", rm.clusters},
@@ -211,6 +222,7 @@ void add_remesh_command(CLI::App& app) {
                          {"cleaned_vertices", cr.cleaned_vertices},
                          {"disconnected_clusters_cleaned", cr.disconnected_clusters},
                          {"final_energy", rm.final_energy},
+                         {"clustering_energy", cr.final_energy},
                          {"repair_rounds", rm.repair_rounds_used},
                          {"repaired_clusters", rm.repaired_clusters},
                          {"repair_splits", rm.repair_splits},

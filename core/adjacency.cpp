@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <cstring>
 
 #include "core/mesh_view.h"
 
@@ -14,6 +15,8 @@ namespace streamcvd {
 namespace {
 
 constexpr size_t kVertexGrain = 2048;
+// Vertices per block of build_vertex_vertex_adjacency (fixed: the blocks define its layout).
+constexpr uint64_t kRingBlock = 4096;
 
 // Valences are small (~6): insertion sort beats std::sort there; big fans fall back to it.
 template <typename T>
@@ -55,6 +58,7 @@ struct FanScratch {
   std::vector<uint64_t> edges;   // (neighbour << 32) | local face index
   std::vector<uint32_t> parent;  // union-find over local faces
   std::vector<uint8_t> used;     // local face has at least one edge
+  std::vector<uint32_t> ring;    // a ring that may not fit its destination
 };
 
 uint32_t find_root(std::vector<uint32_t>& parent, uint32_t x) {
@@ -201,32 +205,68 @@ void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::spa
   assert(flags.empty() || flags.size() + 1 == vf_offsets.size());
   const uint32_t vertex_count = uint32_t(vf_offsets.size() - 1);
   auto faces_of = [&](uint32_t v) { return vertex_face.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]); };
-  // Pass 1: flags and ring sizes; pass 2: the rings, straight into place. The common vertex takes
-  // simple_fan's path, whose size pass needs no sort: cheaper in time and memory than buffering
-  // the rings of pass 1 and copying them.
+  // One pass: each block of kRingBlock vertices writes its rings back to back into a slot of
+  // sum(deg_f + 1) entries at `slot_begin(b)` (a vertex of one fan has at most deg_f + 1
+  // neighbours, so the slots hold nearly every block), recording exact sizes; the blocks are then
+  // moved down to their final offsets in order (each moves left: in place). A block whose rings
+  // do not fit (many vertices of several fans) goes to a side buffer instead, and the layout is
+  // then copied into an exact array. Block boundaries are fixed, so the result does not depend
+  // on the threads.
+  const uint64_t n_blocks = (uint64_t(vertex_count) + kRingBlock - 1) / kRingBlock;
+  auto block_begin = [&](uint64_t b) { return uint32_t(std::min<uint64_t>(b * kRingBlock, vertex_count)); };
+  auto slot_begin = [&](uint64_t b) { return vf_offsets[block_begin(b)] + block_begin(b); };
   offsets.assign(size_t(vertex_count) + 1, 0);
+  neighbours.resize(vf_offsets[vertex_count] + vertex_count);
+  std::vector<uint64_t> block_size(n_blocks, 0);
+  std::vector<std::vector<uint32_t>> side(n_blocks);  // blocks that overflowed their slot (rare)
   tbb::enumerable_thread_specific<FanScratch> fans;
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, vertex_count, kVertexGrain),
-                    [&](const tbb::blocked_range<uint32_t>& r) {
-                      FanScratch& s = fans.local();
-                      for (uint32_t v = r.begin(); v != r.end(); ++v) {
-                        uint32_t size = 0;
-                        const uint8_t f = vertex_flags(triangles, faces_of(v), v, s, size);
-                        if (!flags.empty()) flags[v] = f;
-                        offsets[size_t(v) + 1] = size;
-                      }
-                    });
+  tbb::parallel_for(uint64_t(0), n_blocks, [&](uint64_t b) {
+    FanScratch& s = fans.local();
+    const uint64_t slot_end = slot_begin(b + 1);
+    uint64_t at = slot_begin(b);
+    std::vector<uint32_t>* spill = nullptr;
+    for (uint32_t v = block_begin(b); v != block_begin(b + 1); ++v) {
+      const auto faces = faces_of(v);
+      s.ring.resize(2 * faces.size());  // ≤ 2 new neighbours per face
+      const bool direct = !spill && at + 2 * faces.size() <= slot_end;
+      uint32_t* out = direct ? neighbours.data() + at : s.ring.data();
+      uint32_t size = 0;
+      const uint8_t f = vertex_flags(triangles, faces, v, s, size, out);
+      if (!flags.empty()) flags[v] = f;
+      offsets[size_t(v) + 1] = size;
+      if (!direct && !spill && at + size <= slot_end) {
+        std::copy(out, out + size, neighbours.data() + at);
+      } else if (!direct) {
+        if (!spill) {  // switch this block to its side buffer, with what it already wrote
+          spill = &side[b];
+          spill->assign(neighbours.data() + slot_begin(b), neighbours.data() + at);
+        }
+        spill->insert(spill->end(), out, out + size);
+      }
+      at += size;
+    }
+    block_size[b] = at - slot_begin(b);
+  });
   inclusive_prefix_sum(offsets);
-  neighbours.resize(offsets.back());
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, vertex_count, kVertexGrain),
-                    [&](const tbb::blocked_range<uint32_t>& r) {
-                      FanScratch& s = fans.local();
-                      for (uint32_t v = r.begin(); v != r.end(); ++v) {
-                        uint32_t size = 0;
-                        vertex_flags(triangles, faces_of(v), v, s, size, neighbours.data() + offsets[v]);
-                        assert(size == offsets[size_t(v) + 1] - offsets[v]);
-                      }
-                    });
+  const uint64_t total = offsets.back();
+  const bool spilled = std::any_of(side.begin(), side.end(), [](const auto& v) { return !v.empty(); });
+  if (!spilled) {
+    // Serial and in order: block b's target offsets[first of b] ≤ slot_begin(b), and it may
+    // overlap earlier blocks' slots, which have moved already.
+    for (uint64_t b = 0; b < n_blocks; ++b) {
+      const uint32_t* from = neighbours.data() + slot_begin(b);
+      uint32_t* to = neighbours.data() + offsets[block_begin(b)];
+      if (from != to && block_size[b] > 0) std::memmove(to, from, block_size[b] * sizeof(uint32_t));
+    }
+    neighbours.resize(total);
+    return;
+  }
+  std::vector<uint32_t> exact(total);
+  tbb::parallel_for(uint64_t(0), n_blocks, [&](uint64_t b) {
+    const uint32_t* from = side[b].empty() ? neighbours.data() + slot_begin(b) : side[b].data();
+    std::copy(from, from + block_size[b], exact.data() + offsets[block_begin(b)]);
+  });
+  neighbours.swap(exact);
 }
 
 void compute_vertex_flags(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,

@@ -20,9 +20,10 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
 
 /// CSR vertex→vertex from the triangles and their vertex→face CSR: the neighbours of v (vertices
 /// sharing a face with v, v itself excluded) in ascending order, each once. The result is
-/// symmetric. Two passes (sizes, then rings in place) over each vertex's faces:
-/// O(F · log(valence)) time, no memory beyond the output. With a non-empty `flags` (V entries)
-/// the first pass also stores compute_vertex_flags' result (it computes it anyway).
+/// symmetric. One pass over each vertex's faces into slots of deg_f + 1 entries per vertex, then
+/// an in-place move down to the exact offsets: O(F · log(valence)) time, memory = the output plus
+/// V entries (more only for blocks of vertices with several fans). With a non-empty `flags`
+/// (V entries) the pass also stores compute_vertex_flags' result (it computes it anyway).
 void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
                                    std::span<const uint32_t> vertex_face, std::vector<uint64_t>& offsets,
                                    std::vector<uint32_t>& neighbours, std::span<uint8_t> flags = {});

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
+#include <set>
 #include <vector>
 
 #include "core/mesh_view.h"
@@ -119,6 +121,37 @@ TEST(Adjacency, FansOfAnySizeAndOrientation) {
           EXPECT_EQ(a.ring(v).size(), on_cut ? 3u : 4u) << v;
         }
       }
+}
+
+// Rings checked against sets, on a mesh whose vertex blocks (4096 vertices) include clean ones
+// (a grid: every ring fits deg_f + 1) and ones with many multi-fan vertices, whose rings
+// overflow that bound: stars of triangles meeting only at their centre, random triangles.
+TEST(Adjacency, RingsMatchSetsWhenVerticesHaveManyFans) {
+  std::vector<uint32_t> tri;
+  const uint32_t side = 80;  // grid vertices 0 .. 6399
+  for (uint32_t i = 0; i + 1 < side; ++i)
+    for (uint32_t j = 0; j + 1 < side; ++j) {
+      const uint32_t a = i * side + j, b = a + 1, c = a + side, d = c + 1;
+      tri.insert(tri.end(), {a, b, d, a, d, c});
+    }
+  uint32_t next = side * side;
+  for (int star = 0; star < 200; ++star) {  // centre + 10 separate triangles: ring 20, deg 10
+    const uint32_t centre = next++;
+    for (int k = 0; k < 10; ++k, next += 2) tri.insert(tri.end(), {centre, next, next + 1});
+  }
+  std::mt19937 rng(7);
+  const uint32_t first_random = next, v_count = next + 3000;
+  std::uniform_int_distribution<uint32_t> pick(first_random, v_count - 1);
+  for (int k = 0; k < 6000; ++k) tri.insert(tri.end(), {pick(rng), pick(rng), pick(rng)});
+  Adjacency a(tri, v_count);
+  std::vector<std::set<uint32_t>> sets(v_count);
+  for (size_t f = 0; f < tri.size(); f += 3)
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        if (tri[f + i] != tri[f + j]) sets[tri[f + i]].insert(tri[f + j]);
+  for (uint32_t v = 0; v < v_count; ++v)
+    ASSERT_EQ(a.ring(v), V(sets[v].begin(), sets[v].end())) << v;
+  EXPECT_EQ(a.ring(side * side).size(), 20u);
 }
 
 TEST(Adjacency, EmptyMesh) {

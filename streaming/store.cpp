@@ -21,6 +21,7 @@
 #include <numeric>
 #include <optional>
 #include <type_traits>
+#include <utility>
 
 #include "core/adjacency.h"
 #include "core/errors.h"
@@ -108,87 +109,118 @@ void check_soup(const TriangleSoupView& soup) {
                      std::to_string(soup.triangles[bad]) + " of " + std::to_string(v));
 }
 
-// Number of index ranges for the scan-based counting sorts below: one per thread (each part scans
-// the whole input and keeps the items whose bucket falls in its range, so items of a bucket stay
-// in input order without atomics), at most 8. The output never depends on it.
-uint32_t scan_parts(uint64_t buckets) {
+// Number of item ranges of counting_sort: one per thread, at most 8, fewer for small inputs
+// (each range costs a count array). The output never depends on it.
+uint32_t sort_parts(uint64_t items) {
   const int threads = tbb::this_task_arena::max_concurrency();
-  return uint32_t(std::max<uint64_t>(1, std::min<uint64_t>({uint64_t(std::max(threads, 1)), 8, buckets})));
+  return uint32_t(std::clamp<uint64_t>(std::min<uint64_t>(uint64_t(std::max(threads, 1)), 8), 1,
+                                       std::max<uint64_t>(1, items >> 16)));
 }
 
-// Stable counting sort of items 0..n-1 by bucket_of(i) < buckets, split into scan_parts() bucket
-// ranges scanned in parallel: start gets buckets + 1 entries (bucket b holds positions
-// [start[b], start[b+1])), and place(i, position) is called once per item, in increasing i
-// within each bucket.
+// Stable counting sort of items 0..n-1 by bucket_of(i) < buckets: start gets buckets + 1 entries
+// (bucket b holds positions [start[b], start[b+1])), and place(i, position) is called once per
+// item, in increasing i within each bucket. The items are split into sort_parts() contiguous
+// ranges, each counted and placed by one task with its own cursor per bucket (the prefix sum
+// runs in (bucket, range) order): one branch-free pass over the input per phase, and the result
+// is the unique stable order whatever the number of ranges.
 template <typename BucketOf, typename Place>
 void counting_sort(uint64_t n, uint32_t buckets, BucketOf bucket_of, std::vector<uint32_t>& start, Place place) {
-  // Counts at [b + 2], after the prefix sum [b + 1] is b's start and becomes its end while
-  // placing (the cursor trick of build_vertex_face_adjacency).
-  start.assign(size_t(buckets) + 2, 0);
-  const uint32_t parts = scan_parts(buckets);
-  auto each_part = [&](auto&& body) {
-    tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
-      const uint32_t lo = uint32_t(uint64_t(buckets) * p / parts), hi = uint32_t(uint64_t(buckets) * (p + 1) / parts);
-      for (uint64_t i = 0; i < n; ++i)
-        if (const uint32_t b = bucket_of(i); b >= lo && b < hi) body(b, i);
-    });
-  };
-  each_part([&](uint32_t b, uint64_t) { ++start[size_t(b) + 2]; });
+  const uint32_t parts = sort_parts(n);
+  auto item_begin = [&](uint32_t p) { return n * p / parts; };
+  std::vector<std::vector<uint32_t>> cursor(parts);
+  tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
+    cursor[p].assign(buckets, 0);  // here, so that each task pages in its own array
+    for (uint64_t i = item_begin(p); i != item_begin(p + 1); ++i) ++cursor[p][bucket_of(i)];
+  });
+  start.resize(size_t(buckets) + 1);
   uint32_t sum = 0;
-  for (uint32_t& x : start) x = sum += x;
-  each_part([&](uint32_t b, uint64_t i) { place(i, start[size_t(b) + 1]++); });
-  start.pop_back();
+  for (uint32_t b = 0; b < buckets; ++b) {
+    start[b] = sum;
+    for (uint32_t p = 0; p < parts; ++p) sum += std::exchange(cursor[p][b], sum);
+  }
+  start[buckets] = sum;
+  tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
+    uint32_t* at = cursor[p].data();
+    for (uint64_t i = item_begin(p); i != item_begin(p + 1); ++i) place(i, at[bucket_of(i)]++);
+  });
 }
 
 // Input vertex id of each store vertex: sorted by (Hilbert key, input id), the id breaking ties
-// so the order is a pure function of the input. A stable counting sort on the key's top octree
-// levels (~2 vertices per bucket of a surface... up to a few hundred), then a comparison sort
-// inside each bucket: O(V) passes instead of a full O(V log V) sort.
+// so the order is a pure function of the input. A stable counting sort of the ids on the key's
+// top octree levels (~2 vertices per bucket of a surface... up to a few hundred), straight into
+// `order`, then a sort of each bucket: O(V) passes instead of a full O(V log V) sort, and no
+// (key, id) array for all vertices.
 void hilbert_order(std::span<const float> positions, const Bbox& box, std::vector<uint32_t>& order) {
-  struct KeyId {
-    uint64_t key;
-    uint32_t id;
-    bool operator<(const KeyId& o) const { return key < o.key || (key == o.key && id < o.id); }
-  };
   const uint32_t n = uint32_t(order.size());
   std::vector<uint64_t> keys(n);
   hilbert_keys(positions, make_hilbert_grid(box.lo, box.hi), keys);
   int levels = 1;  // octree levels of the bucket index: 8^levels ≈ n/2 buckets, at most 2^21
   while (levels < 7 && (uint64_t(1) << (3 * levels)) < n / 2) ++levels;
   const int shift = 3 * kHilbertBits - 3 * levels;
-  std::vector<KeyId> sorted(n);
   std::vector<uint32_t> start;
   counting_sort(
       n, uint32_t(1) << (3 * levels), [&](uint64_t v) { return uint32_t(keys[v] >> shift); }, start,
-      [&](uint64_t v, uint32_t at) { sorted[at] = {keys[v], uint32_t(v)}; });
-  std::vector<uint64_t>().swap(keys);
+      [&](uint64_t v, uint32_t at) { order[at] = uint32_t(v); });
+  // Each bucket is sorted on a local copy of its (key, id) pairs: comparisons then read no
+  // scattered keys.
+  struct KeyId {
+    uint64_t key;
+    uint32_t id;
+    bool operator<(const KeyId& o) const { return key < o.key || (key == o.key && id < o.id); }
+  };
+  tbb::enumerable_thread_specific<std::vector<KeyId>> buffers;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, start.size() - 1, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t b = r.begin(); b != r.end(); ++b) std::sort(sorted.begin() + start[b], sorted.begin() + start[b + 1]);
-  });
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, n, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
-    for (uint32_t i = r.begin(); i != r.end(); ++i) order[i] = sorted[i].id;
+    std::vector<KeyId>& local = buffers.local();
+    for (size_t b = r.begin(); b != r.end(); ++b) {
+      const uint32_t first = start[b], count = start[b + 1] - first;
+      if (count < 2) continue;
+      local.resize(count);
+      for (uint32_t i = 0; i < count; ++i) local[i] = {keys[order[first + i]], order[first + i]};
+      if (count > 16) {
+        std::sort(local.begin(), local.end());
+      } else {
+        for (uint32_t i = 1; i < count; ++i) {
+          const KeyId x = local[i];
+          uint32_t j = i;
+          for (; j > 0 && x < local[j - 1]; --j) local[j] = local[j - 1];
+          local[j] = x;
+        }
+      }
+      for (uint32_t i = 0; i < count; ++i) order[first + i] = local[i].id;
+    }
   });
 }
 
 // Stable counting sort of the input faces by owner (smallest new vertex id): fills `owned` (V+1
 // entries, faces of owner v are [owned[v], owned[v+1])) and writes the remapped triangles in that
 // order, corner order kept. Faces of one owner keep their input order, so the result is
-// deterministic.
-void sort_faces_by_owner(std::span<const uint32_t> in, std::span<const uint32_t> new_of_old,
-                         std::vector<uint32_t>& owned, std::vector<uint32_t>& out) {
+// deterministic. With `in_place`, `in` (which it views) is remapped in place first, so each
+// corner is looked up in new_of_old once instead of twice.
+void sort_faces_by_owner(std::span<const uint32_t> in, std::span<uint32_t> in_place,
+                         std::span<const uint32_t> new_of_old, std::vector<uint32_t>& owned,
+                         std::vector<uint32_t>& out) {
   const uint32_t v_count = uint32_t(new_of_old.size());
   const uint64_t f_count = in.size() / 3;
   std::vector<uint32_t> owner(f_count);
   tbb::parallel_for(tbb::blocked_range<uint64_t>(0, f_count, kGrain), [&](const tbb::blocked_range<uint64_t>& r) {
-    for (uint64_t f = r.begin(); f != r.end(); ++f)
-      owner[f] = std::min({new_of_old[in[3 * f]], new_of_old[in[3 * f + 1]], new_of_old[in[3 * f + 2]]});
+    for (uint64_t f = r.begin(); f != r.end(); ++f) {
+      const uint32_t a = new_of_old[in[3 * f]], b = new_of_old[in[3 * f + 1]], c = new_of_old[in[3 * f + 2]];
+      owner[f] = std::min({a, b, c});
+      if (!in_place.empty()) in_place[3 * f] = a, in_place[3 * f + 1] = b, in_place[3 * f + 2] = c;
+    }
   });
   out.resize(3 * f_count);
-  counting_sort(
-      f_count, v_count, [&](uint64_t f) { return owner[f]; }, owned,
-      [&](uint64_t f, uint32_t at) {
-        for (int k = 0; k < 3; ++k) out[3 * size_t(at) + k] = new_of_old[in[3 * f + k]];
-      });
+  auto place = [&](auto corner) {
+    counting_sort(
+        f_count, v_count, [&](uint64_t f) { return owner[f]; }, owned,
+        [&](uint64_t f, uint32_t at) {
+          for (int k = 0; k < 3; ++k) out[3 * size_t(at) + k] = corner(in[3 * f + k]);
+        });
+  };
+  if (in_place.empty())
+    place([&](uint32_t old) { return new_of_old[old]; });
+  else
+    place([](uint32_t remapped) { return remapped; });
 }
 
 // Chunk boundaries: C = round(F / target) chunks of ~F/C owned faces each, cut at the vertex whose
@@ -407,10 +439,15 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
     hand_over("positions.f32", s.positions);
     hand_over("original_ids.u32", s.original_ids);
     // 2. Faces remapped and sorted by owner.
-    sort_faces_by_owner(soup.triangles, new_of_old, owned, s.triangles);
+    sort_faces_by_owner(soup.triangles, consumed ? std::span(consumed->triangles) : std::span<uint32_t>(),
+                        new_of_old, owned, s.triangles);
   }
   hand_over("triangles.u32", s.triangles);
-  if (consumed) *consumed = MeshBuffers{};  // `soup` views it: not used past this point
+  if (consumed) {  // `soup` views it: not used past this point
+    // Its index array has the size of vf.u32 and is paged in already: reuse it.
+    s.vertex_face = std::move(consumed->triangles);
+    *consumed = MeshBuffers{};
+  }
 
   // 3. Adjacency and flags.
   build_vertex_face_adjacency(s.triangles, v_count, s.vf_offsets, s.vertex_face);

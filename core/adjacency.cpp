@@ -34,6 +34,26 @@ void sort_small(T* first, T* last) {
   }
 }
 
+// Sorts a[0, n) for n ≤ 8 with Batcher's 19-comparator network on 8 slots padded with the
+// largest value: branch-free, where insertion sort mispredicts on nearly every neighbour.
+void sort8_padded(uint32_t* a, uint32_t n) {
+  uint32_t x[8];
+  for (uint32_t i = 0; i < 8; ++i) x[i] = i < n ? a[i] : UINT32_MAX;
+  auto cmp = [&](int i, int j) {
+    const uint32_t lo = std::min(x[i], x[j]), hi = std::max(x[i], x[j]);
+    x[i] = lo;
+    x[j] = hi;
+  };
+  cmp(0, 1), cmp(2, 3), cmp(4, 5), cmp(6, 7);
+  cmp(0, 2), cmp(1, 3), cmp(4, 6), cmp(5, 7);
+  cmp(1, 2), cmp(5, 6), cmp(0, 4), cmp(3, 7);
+  cmp(1, 5), cmp(2, 6);
+  cmp(1, 4), cmp(3, 6);
+  cmp(2, 4), cmp(3, 5);
+  cmp(3, 4);
+  for (uint32_t i = 0; i < n; ++i) a[i] = x[i];
+}
+
 // In-place inclusive prefix sum. Serial: a few ms per 10M entries, memory-bound anyway.
 void inclusive_prefix_sum(std::span<uint64_t> a) {
   uint64_t sum = 0;
@@ -94,32 +114,39 @@ bool simple_fan(std::span<const uint32_t> triangles, std::span<const uint32_t> f
     for (size_t j = i + 1; j < k; ++j) bad |= (a[i] == a[j]) | (b[i] == b[j]);
   if (bad) return false;
   // next[i]: the face after i around v (its a is i's b), or k at an open end.
-  uint8_t next[kMaxSimpleFan];
+  uint8_t next[kMaxSimpleFan + 1];
   size_t open_ends = 0, start = 0;
-  bool is_next_of_some[kMaxSimpleFan] = {};
+  bool is_next_of_some[kMaxSimpleFan + 1] = {};
   for (size_t i = 0; i < k; ++i) {
     uint8_t n = uint8_t(k);
     for (size_t j = 0; j < k; ++j) n = a[j] == b[i] ? uint8_t(j) : n;  // a_j distinct: at most one
     next[i] = n;
-    if (n < k) is_next_of_some[n] = true;
+    is_next_of_some[n] = true;
     open_ends += n == k;
   }
+  next[k] = uint8_t(k);
   if (open_ends > 1) return false;
   if (open_ends == 1)
     while (start < k && is_next_of_some[start]) ++start;  // the path's first face
-  size_t visited = 0;
-  for (size_t i = start; i < k && visited <= k; i = next[i]) {
-    ++visited;
-    if (open_ends == 0 && next[i] == start) break;
+  // One fan iff walking from `start` first reaches the end (k for a path, start for a cycle)
+  // after exactly k steps. Fixed trip count, no data-dependent exit.
+  const size_t end = open_ends ? k : start;
+  size_t i = start;
+  bool one_fan = true;
+  for (size_t step = 1; step < k; ++step) {
+    i = next[i];
+    one_fan &= i != end;
   }
-  if (visited != k) return false;
+  if (!one_fan || next[i] != end) return false;
   flags = open_ends ? kVertexBoundary : 0;
   ring_size = uint32_t(k + open_ends);  // the a_i, plus the open end's b
   if (ring) {
-    if (open_ends)
-      for (size_t i = 0; i < k; ++i)
-        if (next[i] == k) a[k] = b[i];
-    sort_small(a, a + ring_size);
+    if (open_ends) a[k] = b[i];  // i is the path's last face
+    if (ring_size <= 8) {
+      sort8_padded(a, ring_size);
+    } else {
+      sort_small(a, a + ring_size);
+    }
     std::copy(a, a + ring_size, ring);
   }
   return true;
@@ -173,8 +200,9 @@ uint8_t vertex_flags(std::span<const uint32_t> triangles, std::span<const uint32
 
 }  // namespace
 
-void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t vertex_count,
-                                 std::vector<uint64_t>& offsets, std::vector<uint32_t>& faces) {
+template <typename Offsets, typename Indices>
+void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t vertex_count, Offsets& offsets,
+                                 Indices& faces) {
   const size_t corners = triangles.size() - triangles.size() % 3;
   assert(corners / 3 <= UINT32_MAX);
   // Each task owns a vertex range and scans every corner in face order, keeping its own: no
@@ -182,7 +210,11 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
   // sequential and cheap next to the scattered writes it replaces sharing.
   // Counts go to offsets[v + 2]; after the prefix sum offsets[v + 1] is v's start, and the fill
   // turns it into v's end = the start of v + 1: CSR without a cursor array.
-  offsets.assign(size_t(vertex_count) + 2, 0);
+  // Zeroed in parallel: each thread pages in a part.
+  offsets.resize(size_t(vertex_count) + 2);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, offsets.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
+    std::fill(offsets.begin() + r.begin(), offsets.begin() + r.end(), 0);
+  });
   const uint32_t parts = scan_parts(vertex_count);
   auto each_part = [&](auto&& body) {
     tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
@@ -193,14 +225,15 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
   };
   each_part([&](uint32_t v, size_t) { ++offsets[size_t(v) + 2]; });
   inclusive_prefix_sum(offsets);
-  faces.resize(corners);
+  faces.resize(corners);  // a no-op when the caller passes a reused array of that size
   each_part([&](uint32_t v, size_t i) { faces[offsets[size_t(v) + 1]++] = uint32_t(i / 3); });
   offsets.pop_back();
 }
 
+template <typename Offsets, typename Indices>
 void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
-                                   std::span<const uint32_t> vertex_face, std::vector<uint64_t>& offsets,
-                                   std::vector<uint32_t>& neighbours, std::span<uint8_t> flags) {
+                                   std::span<const uint32_t> vertex_face, Offsets& offsets, Indices& neighbours,
+                                   std::span<uint8_t> flags) {
   assert(!vf_offsets.empty());
   assert(flags.empty() || flags.size() + 1 == vf_offsets.size());
   const uint32_t vertex_count = uint32_t(vf_offsets.size() - 1);
@@ -215,7 +248,8 @@ void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::spa
   const uint64_t n_blocks = (uint64_t(vertex_count) + kRingBlock - 1) / kRingBlock;
   auto block_begin = [&](uint64_t b) { return uint32_t(std::min<uint64_t>(b * kRingBlock, vertex_count)); };
   auto slot_begin = [&](uint64_t b) { return vf_offsets[block_begin(b)] + block_begin(b); };
-  offsets.assign(size_t(vertex_count) + 1, 0);
+  offsets.resize(size_t(vertex_count) + 1);  // every entry is written below
+  offsets[0] = 0;
   neighbours.resize(vf_offsets[vertex_count] + vertex_count);
   std::vector<uint64_t> block_size(n_blocks, 0);
   std::vector<std::vector<uint32_t>> side(n_blocks);  // blocks that overflowed their slot (rare)
@@ -261,13 +295,24 @@ void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::spa
     neighbours.resize(total);
     return;
   }
-  std::vector<uint32_t> exact(total);
+  Indices exact(total);
   tbb::parallel_for(uint64_t(0), n_blocks, [&](uint64_t b) {
     const uint32_t* from = side[b].empty() ? neighbours.data() + slot_begin(b) : side[b].data();
     std::copy(from, from + block_size[b], exact.data() + offsets[block_begin(b)]);
   });
   neighbours.swap(exact);
 }
+
+template void build_vertex_face_adjacency(std::span<const uint32_t>, uint32_t, std::vector<uint64_t>&,
+                                          std::vector<uint32_t>&);
+template void build_vertex_face_adjacency(std::span<const uint32_t>, uint32_t, DefaultInitVector<uint64_t>&,
+                                          std::vector<uint32_t>&);
+template void build_vertex_vertex_adjacency(std::span<const uint32_t>, std::span<const uint64_t>,
+                                            std::span<const uint32_t>, std::vector<uint64_t>&, std::vector<uint32_t>&,
+                                            std::span<uint8_t>);
+template void build_vertex_vertex_adjacency(std::span<const uint32_t>, std::span<const uint64_t>,
+                                            std::span<const uint32_t>, DefaultInitVector<uint64_t>&,
+                                            DefaultInitVector<uint32_t>&, std::span<uint8_t>);
 
 void compute_vertex_flags(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
                           std::span<const uint32_t> vertex_face, std::span<uint8_t> flags) {

@@ -24,6 +24,7 @@
 #include <utility>
 
 #include "core/adjacency.h"
+#include "core/default_init_vector.h"
 #include "core/errors.h"
 #include "core/hilbert.h"
 #include "streaming/mesh_io.h"
@@ -124,7 +125,7 @@ uint32_t sort_parts(uint64_t items) {
 // runs in (bucket, range) order): one branch-free pass over the input per phase, and the result
 // is the unique stable order whatever the number of ranges.
 template <typename BucketOf, typename Place>
-void counting_sort(uint64_t n, uint32_t buckets, BucketOf bucket_of, std::vector<uint32_t>& start, Place place) {
+void counting_sort(uint64_t n, uint32_t buckets, BucketOf bucket_of, DefaultInitVector<uint32_t>& start, Place place) {
   const uint32_t parts = sort_parts(n);
   auto item_begin = [&](uint32_t p) { return n * p / parts; };
   std::vector<std::vector<uint32_t>> cursor(parts);
@@ -150,14 +151,14 @@ void counting_sort(uint64_t n, uint32_t buckets, BucketOf bucket_of, std::vector
 // top octree levels (~2 vertices per bucket of a surface... up to a few hundred), straight into
 // `order`, then a sort of each bucket: O(V) passes instead of a full O(V log V) sort, and no
 // (key, id) array for all vertices.
-void hilbert_order(std::span<const float> positions, const Bbox& box, std::vector<uint32_t>& order) {
+void hilbert_order(std::span<const float> positions, const Bbox& box, std::span<uint32_t> order) {
   const uint32_t n = uint32_t(order.size());
-  std::vector<uint64_t> keys(n);
+  DefaultInitVector<uint64_t> keys(n);
   hilbert_keys(positions, make_hilbert_grid(box.lo, box.hi), keys);
   int levels = 1;  // octree levels of the bucket index: 8^levels ≈ n/2 buckets, at most 2^21
   while (levels < 7 && (uint64_t(1) << (3 * levels)) < n / 2) ++levels;
   const int shift = 3 * kHilbertBits - 3 * levels;
-  std::vector<uint32_t> start;
+  DefaultInitVector<uint32_t> start;
   counting_sort(
       n, uint32_t(1) << (3 * levels), [&](uint64_t v) { return uint32_t(keys[v] >> shift); }, start,
       [&](uint64_t v, uint32_t at) { order[at] = uint32_t(v); });
@@ -197,11 +198,11 @@ void hilbert_order(std::span<const float> positions, const Bbox& box, std::vecto
 // deterministic. With `in_place`, `in` (which it views) is remapped in place first, so each
 // corner is looked up in new_of_old once instead of twice.
 void sort_faces_by_owner(std::span<const uint32_t> in, std::span<uint32_t> in_place,
-                         std::span<const uint32_t> new_of_old, std::vector<uint32_t>& owned,
-                         std::vector<uint32_t>& out) {
+                         std::span<const uint32_t> new_of_old, DefaultInitVector<uint32_t>& owned,
+                         DefaultInitVector<uint32_t>& out) {
   const uint32_t v_count = uint32_t(new_of_old.size());
   const uint64_t f_count = in.size() / 3;
-  std::vector<uint32_t> owner(f_count);
+  DefaultInitVector<uint32_t> owner(f_count);
   tbb::parallel_for(tbb::blocked_range<uint64_t>(0, f_count, kGrain), [&](const tbb::blocked_range<uint64_t>& r) {
     for (uint64_t f = r.begin(); f != r.end(); ++f) {
       const uint32_t a = new_of_old[in[3 * f]], b = new_of_old[in[3 * f + 1]], c = new_of_old[in[3 * f + 2]];
@@ -344,10 +345,13 @@ struct Mapping {
 struct MeshStore::Impl {
   StoreHeader header;
   // Arrays of a store built in RAM (empty for an opened store).
-  std::vector<float> positions;
-  std::vector<uint32_t> triangles, vertex_vertex, vertex_face, original_ids;
-  std::vector<uint64_t> vv_offsets{0}, vf_offsets{0};  // V + 1 entries, also when empty
-  std::vector<uint8_t> flags;
+  // Filled by parallel passes: not zeroed first (DefaultInitVector). vertex_face takes over the
+  // consumed soup's index array when there is one.
+  DefaultInitVector<float> positions;
+  DefaultInitVector<uint32_t> triangles, vertex_vertex, original_ids;
+  std::vector<uint32_t> vertex_face;
+  DefaultInitVector<uint64_t> vv_offsets{0}, vf_offsets{0};  // V + 1 entries, also when empty
+  DefaultInitVector<uint8_t> flags;
   std::vector<Chunk> chunks;
   // Files of an opened store.
   std::vector<Mapping> mappings;
@@ -425,9 +429,9 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
     hilbert_order(soup.positions, box, s.original_ids);
   else
     std::iota(s.original_ids.begin(), s.original_ids.end(), 0u);
-  std::vector<uint32_t> owned;
+  DefaultInitVector<uint32_t> owned;
   {
-    std::vector<uint32_t> new_of_old(v_count);
+    DefaultInitVector<uint32_t> new_of_old(v_count);
     s.positions.resize(3 * size_t(v_count));
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, v_count, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
       for (uint32_t i = r.begin(); i != r.end(); ++i) {
@@ -461,7 +465,7 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
 
   // 4. Chunks.
   s.chunks = cut_chunks(owned, options.faces_per_chunk);
-  std::vector<uint32_t>().swap(owned);
+  DefaultInitVector<uint32_t>().swap(owned);
   s.view_vectors();
   tbb::enumerable_thread_specific<HaloScratch> scratch;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, s.chunks.size(), 1), [&](const tbb::blocked_range<size_t>& r) {

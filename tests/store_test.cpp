@@ -15,6 +15,7 @@
 #include <set>
 
 #include "core/errors.h"
+#include "core/hilbert.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {
@@ -287,6 +288,25 @@ TEST(Store, HilbertOrderIsLocal) {
   const double random_spread = mean_spread(random_order.view()), hilbert_spread = mean_spread(hilbert.view());
   EXPECT_GT(random_spread, sphere.vertex_count() / 4.0);  // ~V/3 for a random order
   EXPECT_LT(hilbert_spread, 0.05 * random_spread);
+}
+
+// The vertex order is exactly (Hilbert key, input id), also with many vertices in one cell
+// (duplicates: ties broken by id) and crowded buckets, on enough vertices for parallel sorts.
+TEST(Store, HilbertOrderIsSortedByKeyThenInputId) {
+  MeshBuffers mesh = shuffled(make_icosphere(7), 5);  // 163,842 vertices
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> near(0.5f, 0.5001f);
+  for (int i = 0; i < 100; ++i) mesh.positions.insert(mesh.positions.end(), {0.25f, -0.5f, 0.125f});
+  for (int i = 0; i < 300; ++i) mesh.positions.insert(mesh.positions.end(), {near(rng), near(rng), 0.5f});
+  MeshStore store = MeshStore::build(mesh.view());
+  const StoreHeader& h = store.header();
+  const HilbertGrid grid = make_hilbert_grid(h.bbox_min, h.bbox_max);
+  std::vector<std::pair<uint64_t, uint32_t>> expected(mesh.vertex_count());
+  for (uint32_t v = 0; v < mesh.vertex_count(); ++v) expected[v] = {hilbert_key(grid, &mesh.positions[3 * v]), v};
+  std::sort(expected.begin(), expected.end());
+  const auto ids = store.original_vertex_ids();
+  ASSERT_EQ(ids.size(), expected.size());
+  for (size_t i = 0; i < ids.size(); ++i) ASSERT_EQ(ids[i], expected[i].second) << i;
 }
 
 TEST(Store, WriteOpenRoundTripIsByteIdentical) {

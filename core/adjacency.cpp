@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cstring>
+#include <utility>
 
 #include "core/mesh_view.h"
 
@@ -71,6 +72,14 @@ uint32_t range_begin(uint32_t n, uint32_t parts, uint32_t p) { return uint32_t(u
 uint32_t scan_parts(uint32_t vertex_count) {
   const int threads = tbb::this_task_arena::max_concurrency();
   return std::max<uint32_t>(1, std::min<uint32_t>({uint32_t(std::max(threads, 1)), 8u, vertex_count}));
+}
+
+// Number of corner ranges of build_vertex_face_adjacency: one per thread, at most 8, one for
+// small inputs (each range costs a count array of V entries). The output never depends on it.
+uint32_t item_ranges(uint64_t items) {
+  const int threads = tbb::this_task_arena::max_concurrency();
+  return uint32_t(std::clamp<uint64_t>(std::min<uint64_t>(uint64_t(std::max(threads, 1)), 8), 1,
+                                       std::max<uint64_t>(1, items >> 16)));
 }
 
 // Per-thread scratch of compute_vertex_flags.
@@ -205,16 +214,40 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
                                  Indices& faces) {
   const size_t corners = triangles.size() - triangles.size() % 3;
   assert(corners / 3 <= UINT32_MAX);
-  // Each task owns a vertex range and scans every corner in face order, keeping its own: no
-  // atomics, and each list comes out ascending without a sort (hence deterministic). Scanning is
-  // sequential and cheap next to the scattered writes it replaces sharing.
+  offsets.resize(size_t(vertex_count) + 2);
+  faces.resize(corners);  // a no-op when the caller passes a reused array of that size
+  const uint32_t ranges = item_ranges(corners);
+  if (ranges > 1 && corners <= UINT32_MAX) {
+    // Each task takes a contiguous range of corners, counts them per vertex in its own array,
+    // and after a prefix sum in (vertex, range) order places them with those counts as cursors:
+    // one pass over the corners per phase, and lists come out ascending (ranges follow face
+    // order). Cursors are 32-bit, hence the corner limit.
+    std::vector<std::vector<uint32_t>> cursor(ranges);
+    auto range_of = [&](uint32_t r) { return std::pair(corners * r / ranges, corners * (r + 1) / ranges); };
+    tbb::parallel_for(uint32_t(0), ranges, [&](uint32_t r) {
+      cursor[r].assign(vertex_count, 0);  // here, so that each task pages in its own array
+      const auto [lo, hi] = range_of(r);
+      for (size_t i = lo; i < hi; ++i) ++cursor[r][triangles[i]];
+    });
+    uint64_t sum = 0;
+    for (uint32_t v = 0; v < vertex_count; ++v) {
+      offsets[v] = sum;
+      for (uint32_t r = 0; r < ranges; ++r) sum += std::exchange(cursor[r][v], uint32_t(sum));
+    }
+    offsets[vertex_count] = sum;
+    tbb::parallel_for(uint32_t(0), ranges, [&](uint32_t r) {
+      uint32_t* at = cursor[r].data();
+      const auto [lo, hi] = range_of(r);
+      for (size_t i = lo; i < hi; ++i) faces[at[triangles[i]]++] = uint32_t(i / 3);
+    });
+    offsets.pop_back();
+    return;
+  }
+  // One task, or too many corners for 32-bit cursors: each task owns a vertex range and scans
+  // every corner in face order, keeping its own (no atomics, lists ascending without a sort).
   // Counts go to offsets[v + 2]; after the prefix sum offsets[v + 1] is v's start, and the fill
   // turns it into v's end = the start of v + 1: CSR without a cursor array.
-  // Zeroed in parallel: each thread pages in a part.
-  offsets.resize(size_t(vertex_count) + 2);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, offsets.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
-    std::fill(offsets.begin() + r.begin(), offsets.begin() + r.end(), 0);
-  });
+  std::fill(offsets.begin(), offsets.end(), 0);
   const uint32_t parts = scan_parts(vertex_count);
   auto each_part = [&](auto&& body) {
     tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
@@ -225,7 +258,6 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
   };
   each_part([&](uint32_t v, size_t) { ++offsets[size_t(v) + 2]; });
   inclusive_prefix_sum(offsets);
-  faces.resize(corners);  // a no-op when the caller passes a reused array of that size
   each_part([&](uint32_t v, size_t i) { faces[offsets[size_t(v) + 1]++] = uint32_t(i / 3); });
   offsets.pop_back();
 }

@@ -15,8 +15,9 @@ namespace streamcvd {
 
 /// CSR vertex→face: faces of vertex v are faces[offsets[v] .. offsets[v+1]), ascending. Every
 /// corner contributes one entry (faces.size() == triangles.size(), a face repeating a vertex is
-/// listed twice there). offsets gets V+1 entries. O(F·T + V) time for T ≤ 8 threads (each
-/// scans all corners for its vertex range: no atomics, no sort); the vectors are resized.
+/// listed twice there). offsets gets V+1 entries. O(F + V·T) time for T ≤ 8 threads, each
+/// counting then placing a range of corners (no atomics, no sort), plus T·V 32-bit counts of
+/// memory while it runs; the vectors are resized.
 /// Offsets is std::vector<uint64_t> or DefaultInitVector<uint64_t>; Indices std::vector<uint32_t>.
 template <typename Offsets, typename Indices>
 void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t vertex_count, Offsets& offsets,

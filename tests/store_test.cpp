@@ -379,7 +379,8 @@ TEST(Store, LoadMeshOrStoreReadsFiles) {
 }
 
 TEST(Store, DeterministicAcrossRunsAndThreadCounts) {
-  MeshBuffers mesh = shuffled(make_icosphere(5), 9);
+  // 163,842 vertices and 327,680 faces: big enough for the multi-range counting sorts.
+  MeshBuffers mesh = shuffled(make_icosphere(7), 9);
   MeshStore a = MeshStore::build(mesh.view(), {.faces_per_chunk = 1000});
   MeshStore b = MeshStore::build(mesh.view(), {.faces_per_chunk = 1000});
   expect_same_arrays(a, b);

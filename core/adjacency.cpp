@@ -6,6 +6,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cstring>
 #include <utility>
@@ -18,6 +19,7 @@ namespace {
 constexpr size_t kVertexGrain = 2048;
 // Vertices per block of build_vertex_vertex_adjacency (fixed: the blocks define its layout).
 constexpr uint64_t kRingBlock = 4096;
+constexpr uint32_t kScanBlocks = 64;  // vertex blocks of the parallel prefix sums
 
 // Valences are small (~6): insertion sort beats std::sort there; big fans fall back to it.
 template <typename T>
@@ -55,13 +57,21 @@ void sort8_padded(uint32_t* a, uint32_t n) {
   for (uint32_t i = 0; i < n; ++i) a[i] = x[i];
 }
 
-// In-place inclusive prefix sum. Serial: a few ms per 10M entries, memory-bound anyway.
+// In-place inclusive prefix sum, in parallel over kScanBlocks blocks (their totals, then each
+// block from its base): integer sums, so the same result for any split.
 void inclusive_prefix_sum(std::span<uint64_t> a) {
-  uint64_t sum = 0;
-  for (uint64_t& x : a) {
-    sum += x;
-    x = sum;
-  }
+  auto block_begin = [&](uint32_t k) { return a.size() * k / kScanBlocks; };
+  std::array<uint64_t, kScanBlocks + 1> base{};
+  tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
+    uint64_t total = 0;
+    for (size_t i = block_begin(k); i != block_begin(k + 1); ++i) total += a[i];
+    base[k + 1] = total;
+  });
+  for (uint32_t k = 0; k < kScanBlocks; ++k) base[k + 1] += base[k];
+  tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
+    uint64_t sum = base[k];
+    for (size_t i = block_begin(k); i != block_begin(k + 1); ++i) a[i] = sum += a[i];
+  });
 }
 
 // Splits [0, n) into `parts` nearly equal ranges; part p is [range_begin(n, parts, p), range_begin(n, parts, p + 1)).
@@ -229,12 +239,25 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
       const auto [lo, hi] = range_of(r);
       for (size_t i = lo; i < hi; ++i) ++cursor[r][triangles[i]];
     });
-    uint64_t sum = 0;
-    for (uint32_t v = 0; v < vertex_count; ++v) {
-      offsets[v] = sum;
-      for (uint32_t r = 0; r < ranges; ++r) sum += std::exchange(cursor[r][v], uint32_t(sum));
-    }
-    offsets[vertex_count] = sum;
+    // Prefix sum in (vertex, range) order, in parallel over vertex blocks: their totals, then
+    // each block from its base (integer sums: the same for any split).
+    auto block_begin = [&](uint32_t k) { return uint32_t(uint64_t(vertex_count) * k / kScanBlocks); };
+    std::array<uint64_t, kScanBlocks + 1> base{};
+    tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
+      uint64_t total = 0;
+      for (uint32_t r = 0; r < ranges; ++r)
+        for (uint32_t v = block_begin(k); v != block_begin(k + 1); ++v) total += cursor[r][v];
+      base[k + 1] = total;
+    });
+    for (uint32_t k = 0; k < kScanBlocks; ++k) base[k + 1] += base[k];
+    tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
+      uint64_t sum = base[k];
+      for (uint32_t v = block_begin(k); v != block_begin(k + 1); ++v) {
+        offsets[v] = sum;
+        for (uint32_t r = 0; r < ranges; ++r) sum += std::exchange(cursor[r][v], uint32_t(sum));
+      }
+    });
+    offsets[vertex_count] = base[kScanBlocks];
     tbb::parallel_for(uint32_t(0), ranges, [&](uint32_t r) {
       uint32_t* at = cursor[r].data();
       const auto [lo, hi] = range_of(r);

@@ -17,6 +17,7 @@ namespace streamcvd::store_build {
 namespace {
 
 constexpr size_t kGrain = 1 << 14;
+constexpr uint32_t kScanBlocks = 64;  // bucket blocks of the parallel prefix sums
 
 // Number of item ranges of counting_sort: one per thread, at most 8, fewer for small inputs
 // (each range costs a count array). The output never depends on it.
@@ -41,13 +42,26 @@ void counting_sort(uint64_t n, uint32_t buckets, BucketOf bucket_of, DefaultInit
     cursor[p].assign(buckets, 0);  // here, so that each task pages in its own array
     for (uint64_t i = item_begin(p); i != item_begin(p + 1); ++i) ++cursor[p][bucket_of(i)];
   });
+  // Prefix sum in (bucket, range) order, in parallel over kScanBlocks bucket blocks: their totals,
+  // then each block from its base. Integer sums: the same result for any split.
   start.resize(size_t(buckets) + 1);
-  uint32_t sum = 0;
-  for (uint32_t b = 0; b < buckets; ++b) {
-    start[b] = sum;
-    for (uint32_t p = 0; p < parts; ++p) sum += std::exchange(cursor[p][b], sum);
-  }
-  start[buckets] = sum;
+  auto block_begin = [&](uint32_t k) { return uint32_t(uint64_t(buckets) * k / kScanBlocks); };
+  std::array<uint32_t, kScanBlocks + 1> base{};
+  tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
+    uint32_t total = 0;
+    for (uint32_t p = 0; p < parts; ++p)
+      for (uint32_t b = block_begin(k); b != block_begin(k + 1); ++b) total += cursor[p][b];
+    base[k + 1] = total;
+  });
+  for (uint32_t k = 0; k < kScanBlocks; ++k) base[k + 1] += base[k];
+  tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
+    uint32_t sum = base[k];
+    for (uint32_t b = block_begin(k); b != block_begin(k + 1); ++b) {
+      start[b] = sum;
+      for (uint32_t p = 0; p < parts; ++p) sum += std::exchange(cursor[p][b], sum);
+    }
+  });
+  start[buckets] = base[kScanBlocks];
   tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
     uint32_t* at = cursor[p].data();
     for (uint64_t i = item_begin(p); i != item_begin(p + 1); ++i) place(i, at[bucket_of(i)]++);
@@ -102,9 +116,13 @@ void chunk_extras_of(const MeshView& m, Chunk& c, HaloScratch& s) {
   s.faces.clear();
   s.ring1.clear();
   for (uint32_t v = c.vertex_begin; v < c.vertex_end; ++v) {
+    // Most vertices are interior: all neighbours (sorted) in the chunk, so all their faces are
+    // owned by chunk vertices and in its face range too. Nothing to collect there.
+    const std::span<const uint32_t> ring = m.neighbours(v);
+    if (!ring.empty() && ring.front() >= c.vertex_begin && ring.back() < c.vertex_end) continue;
     for (uint32_t f : m.faces_of(v))
       if (outside_f(f)) s.faces.push_back(f);
-    for (uint32_t u : m.neighbours(v))
+    for (uint32_t u : ring)
       if (outside_v(u)) s.ring1.push_back(u);
   }
   sort_unique(s.faces);

@@ -1,14 +1,18 @@
 // std::vector whose resize() leaves new elements of trivial types uninitialised (default-init
 // instead of value-init). For big arrays that a parallel pass fills completely: no serial memset
-// first, and each page is faulted in by the thread that fills it.
+// first, and each page is faulted in by the thread that fills it. Big arrays are page-aligned.
 #pragma once
 
+#include <cstddef>
 #include <memory>
 #include <new>
 #include <utility>
 #include <vector>
 
 namespace streamcvd {
+
+inline constexpr std::size_t kPageAlign = 4096;
+inline constexpr std::size_t kPageAlignFrom = std::size_t(1) << 20;
 
 template <typename T>
 struct DefaultInitAllocator : std::allocator<T> {
@@ -19,6 +23,16 @@ struct DefaultInitAllocator : std::allocator<T> {
   DefaultInitAllocator() = default;
   template <typename U>
   DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
+  /// Arrays of 1 MiB or more start on a 4096-byte boundary: direct I/O can write them in place.
+  T* allocate(std::size_t n) {
+    if (n * sizeof(T) < kPageAlignFrom) return std::allocator<T>::allocate(n);
+    if (n > std::size_t(-1) / sizeof(T)) throw std::bad_array_new_length();
+    return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t(kPageAlign)));
+  }
+  void deallocate(T* p, std::size_t n) noexcept {
+    if (n * sizeof(T) < kPageAlignFrom) return std::allocator<T>::deallocate(p, n);
+    ::operator delete(p, std::align_val_t(kPageAlign));
+  }
   /// construct(p) default-initialises (no zeroing); with arguments it constructs as usual.
   template <typename U, typename... Args>
   void construct(U* p, Args&&... args) {

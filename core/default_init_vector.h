@@ -3,6 +3,8 @@
 // first, and each page is faulted in by the thread that fills it. Big arrays are page-aligned.
 #pragma once
 
+#include <sys/mman.h>
+
 #include <cstddef>
 #include <memory>
 #include <new>
@@ -11,7 +13,6 @@
 
 namespace streamcvd {
 
-inline constexpr std::size_t kPageAlign = 4096;
 inline constexpr std::size_t kPageAlignFrom = std::size_t(1) << 20;
 
 template <typename T>
@@ -23,15 +24,19 @@ struct DefaultInitAllocator : std::allocator<T> {
   DefaultInitAllocator() = default;
   template <typename U>
   DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
-  /// Arrays of 1 MiB or more start on a 4096-byte boundary: direct I/O can write them in place.
+  /// Arrays of 1 MiB or more are mapped pages of their own: page-aligned, so direct I/O writes
+  /// them in place, and unmapped when freed (malloc's memalign would carve them from its heap,
+  /// which keeps freed memory resident and raises the peak RSS).
   T* allocate(std::size_t n) {
     if (n * sizeof(T) < kPageAlignFrom) return std::allocator<T>::allocate(n);
     if (n > std::size_t(-1) / sizeof(T)) throw std::bad_array_new_length();
-    return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t(kPageAlign)));
+    void* p = ::mmap(nullptr, n * sizeof(T), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    return static_cast<T*>(p);
   }
   void deallocate(T* p, std::size_t n) noexcept {
     if (n * sizeof(T) < kPageAlignFrom) return std::allocator<T>::deallocate(p, n);
-    ::operator delete(p, std::align_val_t(kPageAlign));
+    ::munmap(p, n * sizeof(T));
   }
   /// construct(p) default-initialises (no zeroing); with arguments it constructs as usual.
   template <typename U, typename... Args>

@@ -6,7 +6,10 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <cassert>
+#include <cstring>
+#include <utility>
 
 #include "core/mesh_view.h"
 
@@ -14,6 +17,9 @@ namespace streamcvd {
 namespace {
 
 constexpr size_t kVertexGrain = 2048;
+// Vertices per block of build_vertex_vertex_adjacency (fixed: the blocks define its layout).
+constexpr uint64_t kRingBlock = 4096;
+constexpr uint32_t kScanBlocks = 64;  // vertex blocks of the parallel prefix sums
 
 // Valences are small (~6): insertion sort beats std::sort there; big fans fall back to it.
 template <typename T>
@@ -31,13 +37,41 @@ void sort_small(T* first, T* last) {
   }
 }
 
-// In-place inclusive prefix sum. Serial: a few ms per 10M entries, memory-bound anyway.
+// Sorts a[0, n) for n ≤ 8 with Batcher's 19-comparator network on 8 slots padded with the
+// largest value: branch-free, where insertion sort mispredicts on nearly every neighbour.
+void sort8_padded(uint32_t* a, uint32_t n) {
+  uint32_t x[8];
+  for (uint32_t i = 0; i < 8; ++i) x[i] = i < n ? a[i] : UINT32_MAX;
+  auto cmp = [&](int i, int j) {
+    const uint32_t lo = std::min(x[i], x[j]), hi = std::max(x[i], x[j]);
+    x[i] = lo;
+    x[j] = hi;
+  };
+  cmp(0, 1), cmp(2, 3), cmp(4, 5), cmp(6, 7);
+  cmp(0, 2), cmp(1, 3), cmp(4, 6), cmp(5, 7);
+  cmp(1, 2), cmp(5, 6), cmp(0, 4), cmp(3, 7);
+  cmp(1, 5), cmp(2, 6);
+  cmp(1, 4), cmp(3, 6);
+  cmp(2, 4), cmp(3, 5);
+  cmp(3, 4);
+  for (uint32_t i = 0; i < n; ++i) a[i] = x[i];
+}
+
+// In-place inclusive prefix sum, in parallel over kScanBlocks blocks (their totals, then each
+// block from its base): integer sums, so the same result for any split.
 void inclusive_prefix_sum(std::span<uint64_t> a) {
-  uint64_t sum = 0;
-  for (uint64_t& x : a) {
-    sum += x;
-    x = sum;
-  }
+  auto block_begin = [&](uint32_t k) { return a.size() * k / kScanBlocks; };
+  std::array<uint64_t, kScanBlocks + 1> base{};
+  tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
+    uint64_t total = 0;
+    for (size_t i = block_begin(k); i != block_begin(k + 1); ++i) total += a[i];
+    base[k + 1] = total;
+  });
+  for (uint32_t k = 0; k < kScanBlocks; ++k) base[k + 1] += base[k];
+  tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
+    uint64_t sum = base[k];
+    for (size_t i = block_begin(k); i != block_begin(k + 1); ++i) a[i] = sum += a[i];
+  });
 }
 
 // Splits [0, n) into `parts` nearly equal ranges; part p is [range_begin(n, parts, p), range_begin(n, parts, p + 1)).
@@ -50,11 +84,20 @@ uint32_t scan_parts(uint32_t vertex_count) {
   return std::max<uint32_t>(1, std::min<uint32_t>({uint32_t(std::max(threads, 1)), 8u, vertex_count}));
 }
 
+// Number of corner ranges of build_vertex_face_adjacency: one per thread, at most 8, one for
+// small inputs (each range costs a count array of V entries). The output never depends on it.
+uint32_t item_ranges(uint64_t items) {
+  const int threads = tbb::this_task_arena::max_concurrency();
+  return uint32_t(std::clamp<uint64_t>(std::min<uint64_t>(uint64_t(std::max(threads, 1)), 8), 1,
+                                       std::max<uint64_t>(1, items >> 16)));
+}
+
 // Per-thread scratch of compute_vertex_flags.
 struct FanScratch {
   std::vector<uint64_t> edges;   // (neighbour << 32) | local face index
   std::vector<uint32_t> parent;  // union-find over local faces
   std::vector<uint8_t> used;     // local face has at least one edge
+  std::vector<uint32_t> ring;    // a ring that may not fit its destination
 };
 
 uint32_t find_root(std::vector<uint32_t>& parent, uint32_t x) {
@@ -90,32 +133,39 @@ bool simple_fan(std::span<const uint32_t> triangles, std::span<const uint32_t> f
     for (size_t j = i + 1; j < k; ++j) bad |= (a[i] == a[j]) | (b[i] == b[j]);
   if (bad) return false;
   // next[i]: the face after i around v (its a is i's b), or k at an open end.
-  uint8_t next[kMaxSimpleFan];
+  uint8_t next[kMaxSimpleFan + 1];
   size_t open_ends = 0, start = 0;
-  bool is_next_of_some[kMaxSimpleFan] = {};
+  bool is_next_of_some[kMaxSimpleFan + 1] = {};
   for (size_t i = 0; i < k; ++i) {
     uint8_t n = uint8_t(k);
     for (size_t j = 0; j < k; ++j) n = a[j] == b[i] ? uint8_t(j) : n;  // a_j distinct: at most one
     next[i] = n;
-    if (n < k) is_next_of_some[n] = true;
+    is_next_of_some[n] = true;
     open_ends += n == k;
   }
+  next[k] = uint8_t(k);
   if (open_ends > 1) return false;
   if (open_ends == 1)
     while (start < k && is_next_of_some[start]) ++start;  // the path's first face
-  size_t visited = 0;
-  for (size_t i = start; i < k && visited <= k; i = next[i]) {
-    ++visited;
-    if (open_ends == 0 && next[i] == start) break;
+  // One fan iff walking from `start` first reaches the end (k for a path, start for a cycle)
+  // after exactly k steps. Fixed trip count, no data-dependent exit.
+  const size_t end = open_ends ? k : start;
+  size_t i = start;
+  bool one_fan = true;
+  for (size_t step = 1; step < k; ++step) {
+    i = next[i];
+    one_fan &= i != end;
   }
-  if (visited != k) return false;
+  if (!one_fan || next[i] != end) return false;
   flags = open_ends ? kVertexBoundary : 0;
   ring_size = uint32_t(k + open_ends);  // the a_i, plus the open end's b
   if (ring) {
-    if (open_ends)
-      for (size_t i = 0; i < k; ++i)
-        if (next[i] == k) a[k] = b[i];
-    sort_small(a, a + ring_size);
+    if (open_ends) a[k] = b[i];  // i is the path's last face
+    if (ring_size <= 8) {
+      sort8_padded(a, ring_size);
+    } else {
+      sort_small(a, a + ring_size);
+    }
     std::copy(a, a + ring_size, ring);
   }
   return true;
@@ -169,16 +219,58 @@ uint8_t vertex_flags(std::span<const uint32_t> triangles, std::span<const uint32
 
 }  // namespace
 
-void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t vertex_count,
-                                 std::vector<uint64_t>& offsets, std::vector<uint32_t>& faces) {
+template <typename Offsets, typename Indices>
+void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t vertex_count, Offsets& offsets,
+                                 Indices& faces) {
   const size_t corners = triangles.size() - triangles.size() % 3;
   assert(corners / 3 <= UINT32_MAX);
-  // Each task owns a vertex range and scans every corner in face order, keeping its own: no
-  // atomics, and each list comes out ascending without a sort (hence deterministic). Scanning is
-  // sequential and cheap next to the scattered writes it replaces sharing.
+  offsets.resize(size_t(vertex_count) + 2);
+  faces.resize(corners);  // a no-op when the caller passes a reused array of that size
+  const uint32_t ranges = item_ranges(corners);
+  if (ranges > 1 && corners <= UINT32_MAX) {
+    // Each task takes a contiguous range of corners, counts them per vertex in its own array,
+    // and after a prefix sum in (vertex, range) order places them with those counts as cursors:
+    // one pass over the corners per phase, and lists come out ascending (ranges follow face
+    // order). Cursors are 32-bit, hence the corner limit.
+    std::vector<std::vector<uint32_t>> cursor(ranges);
+    auto range_of = [&](uint32_t r) { return std::pair(corners * r / ranges, corners * (r + 1) / ranges); };
+    tbb::parallel_for(uint32_t(0), ranges, [&](uint32_t r) {
+      cursor[r].assign(vertex_count, 0);  // here, so that each task pages in its own array
+      const auto [lo, hi] = range_of(r);
+      for (size_t i = lo; i < hi; ++i) ++cursor[r][triangles[i]];
+    });
+    // Prefix sum in (vertex, range) order, in parallel over vertex blocks: their totals, then
+    // each block from its base (integer sums: the same for any split).
+    auto block_begin = [&](uint32_t k) { return uint32_t(uint64_t(vertex_count) * k / kScanBlocks); };
+    std::array<uint64_t, kScanBlocks + 1> base{};
+    tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
+      uint64_t total = 0;
+      for (uint32_t r = 0; r < ranges; ++r)
+        for (uint32_t v = block_begin(k); v != block_begin(k + 1); ++v) total += cursor[r][v];
+      base[k + 1] = total;
+    });
+    for (uint32_t k = 0; k < kScanBlocks; ++k) base[k + 1] += base[k];
+    tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
+      uint64_t sum = base[k];
+      for (uint32_t v = block_begin(k); v != block_begin(k + 1); ++v) {
+        offsets[v] = sum;
+        for (uint32_t r = 0; r < ranges; ++r) sum += std::exchange(cursor[r][v], uint32_t(sum));
+      }
+    });
+    offsets[vertex_count] = base[kScanBlocks];
+    tbb::parallel_for(uint32_t(0), ranges, [&](uint32_t r) {
+      uint32_t* at = cursor[r].data();
+      const auto [lo, hi] = range_of(r);
+      for (size_t i = lo; i < hi; ++i) faces[at[triangles[i]]++] = uint32_t(i / 3);
+    });
+    offsets.pop_back();
+    return;
+  }
+  // One task, or too many corners for 32-bit cursors: each task owns a vertex range and scans
+  // every corner in face order, keeping its own (no atomics, lists ascending without a sort).
   // Counts go to offsets[v + 2]; after the prefix sum offsets[v + 1] is v's start, and the fill
   // turns it into v's end = the start of v + 1: CSR without a cursor array.
-  offsets.assign(size_t(vertex_count) + 2, 0);
+  std::fill(offsets.begin(), offsets.end(), 0);
   const uint32_t parts = scan_parts(vertex_count);
   auto each_part = [&](auto&& body) {
     tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
@@ -189,45 +281,93 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
   };
   each_part([&](uint32_t v, size_t) { ++offsets[size_t(v) + 2]; });
   inclusive_prefix_sum(offsets);
-  faces.resize(corners);
   each_part([&](uint32_t v, size_t i) { faces[offsets[size_t(v) + 1]++] = uint32_t(i / 3); });
   offsets.pop_back();
 }
 
+template <typename Offsets, typename Indices>
 void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
-                                   std::span<const uint32_t> vertex_face, std::vector<uint64_t>& offsets,
-                                   std::vector<uint32_t>& neighbours, std::span<uint8_t> flags) {
+                                   std::span<const uint32_t> vertex_face, Offsets& offsets, Indices& neighbours,
+                                   std::span<uint8_t> flags) {
   assert(!vf_offsets.empty());
   assert(flags.empty() || flags.size() + 1 == vf_offsets.size());
   const uint32_t vertex_count = uint32_t(vf_offsets.size() - 1);
   auto faces_of = [&](uint32_t v) { return vertex_face.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]); };
-  // Pass 1: flags and ring sizes; pass 2: the rings, straight into place. The common vertex takes
-  // simple_fan's path, whose size pass needs no sort: cheaper in time and memory than buffering
-  // the rings of pass 1 and copying them.
-  offsets.assign(size_t(vertex_count) + 1, 0);
+  // One pass: each block of kRingBlock vertices writes its rings back to back into a slot of
+  // sum(deg_f + 1) entries at `slot_begin(b)` (a vertex of one fan has at most deg_f + 1
+  // neighbours, so the slots hold nearly every block), recording exact sizes; the blocks are then
+  // moved down to their final offsets in order (each moves left: in place). A block whose rings
+  // do not fit (many vertices of several fans) goes to a side buffer instead, and the layout is
+  // then copied into an exact array. Block boundaries are fixed, so the result does not depend
+  // on the threads.
+  const uint64_t n_blocks = (uint64_t(vertex_count) + kRingBlock - 1) / kRingBlock;
+  auto block_begin = [&](uint64_t b) { return uint32_t(std::min<uint64_t>(b * kRingBlock, vertex_count)); };
+  auto slot_begin = [&](uint64_t b) { return vf_offsets[block_begin(b)] + block_begin(b); };
+  offsets.resize(size_t(vertex_count) + 1);  // every entry is written below
+  offsets[0] = 0;
+  neighbours.resize(vf_offsets[vertex_count] + vertex_count);
+  std::vector<uint64_t> block_size(n_blocks, 0);
+  std::vector<std::vector<uint32_t>> side(n_blocks);  // blocks that overflowed their slot (rare)
   tbb::enumerable_thread_specific<FanScratch> fans;
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, vertex_count, kVertexGrain),
-                    [&](const tbb::blocked_range<uint32_t>& r) {
-                      FanScratch& s = fans.local();
-                      for (uint32_t v = r.begin(); v != r.end(); ++v) {
-                        uint32_t size = 0;
-                        const uint8_t f = vertex_flags(triangles, faces_of(v), v, s, size);
-                        if (!flags.empty()) flags[v] = f;
-                        offsets[size_t(v) + 1] = size;
-                      }
-                    });
+  tbb::parallel_for(uint64_t(0), n_blocks, [&](uint64_t b) {
+    FanScratch& s = fans.local();
+    const uint64_t slot_end = slot_begin(b + 1);
+    uint64_t at = slot_begin(b);
+    std::vector<uint32_t>* spill = nullptr;
+    for (uint32_t v = block_begin(b); v != block_begin(b + 1); ++v) {
+      const auto faces = faces_of(v);
+      s.ring.resize(2 * faces.size());  // ≤ 2 new neighbours per face
+      const bool direct = !spill && at + 2 * faces.size() <= slot_end;
+      uint32_t* out = direct ? neighbours.data() + at : s.ring.data();
+      uint32_t size = 0;
+      const uint8_t f = vertex_flags(triangles, faces, v, s, size, out);
+      if (!flags.empty()) flags[v] = f;
+      offsets[size_t(v) + 1] = size;
+      if (!direct && !spill && at + size <= slot_end) {
+        std::copy(out, out + size, neighbours.data() + at);
+      } else if (!direct) {
+        if (!spill) {  // switch this block to its side buffer, with what it already wrote
+          spill = &side[b];
+          spill->assign(neighbours.data() + slot_begin(b), neighbours.data() + at);
+        }
+        spill->insert(spill->end(), out, out + size);
+      }
+      at += size;
+    }
+    block_size[b] = at - slot_begin(b);
+  });
   inclusive_prefix_sum(offsets);
-  neighbours.resize(offsets.back());
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, vertex_count, kVertexGrain),
-                    [&](const tbb::blocked_range<uint32_t>& r) {
-                      FanScratch& s = fans.local();
-                      for (uint32_t v = r.begin(); v != r.end(); ++v) {
-                        uint32_t size = 0;
-                        vertex_flags(triangles, faces_of(v), v, s, size, neighbours.data() + offsets[v]);
-                        assert(size == offsets[size_t(v) + 1] - offsets[v]);
-                      }
-                    });
+  const uint64_t total = offsets.back();
+  const bool spilled = std::any_of(side.begin(), side.end(), [](const auto& v) { return !v.empty(); });
+  if (!spilled) {
+    // Serial and in order: block b's target offsets[first of b] ≤ slot_begin(b), and it may
+    // overlap earlier blocks' slots, which have moved already.
+    for (uint64_t b = 0; b < n_blocks; ++b) {
+      const uint32_t* from = neighbours.data() + slot_begin(b);
+      uint32_t* to = neighbours.data() + offsets[block_begin(b)];
+      if (from != to && block_size[b] > 0) std::memmove(to, from, block_size[b] * sizeof(uint32_t));
+    }
+    neighbours.resize(total);
+    return;
+  }
+  Indices exact(total);
+  tbb::parallel_for(uint64_t(0), n_blocks, [&](uint64_t b) {
+    const uint32_t* from = side[b].empty() ? neighbours.data() + slot_begin(b) : side[b].data();
+    std::copy(from, from + block_size[b], exact.data() + offsets[block_begin(b)]);
+  });
+  neighbours.swap(exact);
 }
+
+template void build_vertex_face_adjacency(std::span<const uint32_t>, uint32_t, std::vector<uint64_t>&,
+                                          std::vector<uint32_t>&);
+template void build_vertex_face_adjacency(std::span<const uint32_t>, uint32_t, DefaultInitVector<uint64_t>&,
+                                          std::vector<uint32_t>&);
+template void build_vertex_vertex_adjacency(std::span<const uint32_t>, std::span<const uint64_t>,
+                                            std::span<const uint32_t>, std::vector<uint64_t>&, std::vector<uint32_t>&,
+                                            std::span<uint8_t>);
+template void build_vertex_vertex_adjacency(std::span<const uint32_t>, std::span<const uint64_t>,
+                                            std::span<const uint32_t>, DefaultInitVector<uint64_t>&,
+                                            DefaultInitVector<uint32_t>&, std::span<uint8_t>);
 
 void compute_vertex_flags(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
                           std::span<const uint32_t> vertex_face, std::span<uint8_t> flags) {

@@ -12,6 +12,7 @@
 #include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <cstdint>
 #include <cstring>
 #include <mutex>
 #include <stdexcept>
@@ -309,11 +310,17 @@ void AtomicOutputFile::write_direct(const void* data, size_t n) {
   while (bounce && left > 0) {
     const size_t take = std::min(left, kDirectBlock);
     const size_t whole = (take + kDirectAlign - 1) / kDirectAlign * kDirectAlign;
-    std::memcpy(bounce.get(), p, take);
-    std::memset(bounce.get() + take, 0, whole - take);  // the tail block is padded, truncated below
+    // Aligned source blocks (e.g. the store's page-aligned arrays) are written as they are; the
+    // rest and the padded tail go through the bounce buffer.
+    const bool in_place = reinterpret_cast<uintptr_t>(p) % kDirectAlign == 0 && take == whole;
+    if (!in_place) {
+      std::memcpy(bounce.get(), p, take);
+      std::memset(bounce.get() + take, 0, whole - take);  // the tail block is padded, truncated below
+    }
+    const char* from = in_place ? p : bounce.get();
     size_t done = 0;
     while (done < whole) {
-      ssize_t w = ::write(fd_, bounce.get() + done, whole - done);
+      ssize_t w = ::write(fd_, from + done, whole - done);
       if (w < 0 && errno == EINTR) continue;
       if (w < 0 && errno == EINVAL && done == 0) break;  // O_DIRECT refused (file system): fall back
       if (w < 0) fail(std::string("write failed: ") + std::strerror(errno));

@@ -50,7 +50,8 @@ class AtomicOutputFile {
   }
 
   /// Appends n bytes like write(), but large uncompressed blocks bypass the page cache (O_DIRECT,
-  /// through an aligned bounce buffer) when the file system allows it, else plain write(). For
+  /// straight from `data` where it is 4096-aligned, else through an aligned bounce buffer) when
+  /// the file system allows it, else plain write(). For
   /// big arrays not read back soon: on this project's VM disks ~5x faster than buffered writes
   /// followed by fsync. Throws OutputError like write().
   void write_direct(const void* data, size_t n);

@@ -4,17 +4,12 @@
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_reduce.h>
-#include <tbb/task_arena.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <bit>
 #include <cerrno>
-#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <limits>
@@ -23,10 +18,11 @@
 #include <type_traits>
 
 #include "core/adjacency.h"
+#include "core/default_init_vector.h"
 #include "core/errors.h"
-#include "core/hilbert.h"
 #include "streaming/mesh_io.h"
 #include "streaming/output_file.h"
+#include "streaming/store_build.h"
 #include "streaming/store_writer.h"
 
 namespace streamcvd {
@@ -35,236 +31,12 @@ static_assert(std::endian::native == std::endian::little, "the store's arrays ar
 static_assert(std::is_trivially_copyable_v<StoreHeader> && sizeof(StoreHeader) == 104,
               "StoreHeader is an on-disk record");
 
+using namespace store_build;  // the build passes
+
 namespace {
 constexpr uint32_t kStoreVersion = 1;
 constexpr const char* kHeaderFile = "header.bin";
 constexpr size_t kGrain = 1 << 14;
-
-// ---------------------------------------------------------------------------------------------
-// Build helpers
-
-struct Bbox {
-  float lo[3] = {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity(),
-                 std::numeric_limits<float>::infinity()};
-  float hi[3] = {-std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
-                 -std::numeric_limits<float>::infinity()};
-  void add(const float* p) {
-    for (int k = 0; k < 3; ++k)
-      if (std::isfinite(p[k])) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
-  }
-  void add(const Bbox& b) {
-    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], b.lo[k]), hi[k] = std::max(hi[k], b.hi[k]);
-  }
-  // An empty box (no finite coordinate on an axis) becomes [0, 0] on that axis.
-  void finish() {
-    for (int k = 0; k < 3; ++k)
-      if (!(lo[k] <= hi[k])) lo[k] = hi[k] = 0;
-  }
-};
-
-// Bounding box of the finite coordinates of vertices [begin, end). Parallel, deterministic
-// (min/max are exact in any order).
-Bbox bounding_box(std::span<const float> positions, size_t begin, size_t end) {
-  return tbb::parallel_reduce(
-      tbb::blocked_range<size_t>(begin, end, kGrain), Bbox{},
-      [&](const tbb::blocked_range<size_t>& r, Bbox b) {
-        for (size_t v = r.begin(); v != r.end(); ++v) b.add(&positions[3 * v]);
-        return b;
-      },
-      [](Bbox a, const Bbox& b) {
-        a.add(b);
-        return a;
-      });
-}
-
-// Smallest i in [0, n) with bad(i), or n. Parallel and deterministic.
-template <typename Pred>
-uint64_t first_violation(uint64_t n, Pred bad) {
-  return tbb::parallel_reduce(
-      tbb::blocked_range<uint64_t>(0, n, 1 << 16), n,
-      [&](const tbb::blocked_range<uint64_t>& r, uint64_t found) {
-        for (uint64_t i = r.begin(); i != r.end() && i < found; ++i)
-          if (bad(i)) return i;
-        return found;
-      },
-      [](uint64_t a, uint64_t b) { return std::min(a, b); });
-}
-
-void check_soup(const TriangleSoupView& soup) {
-  if (soup.positions.size() % 3 != 0)
-    throw InputError("store build: positions hold " + std::to_string(soup.positions.size()) +
-                     " floats, not a multiple of 3");
-  if (soup.triangles.size() % 3 != 0)
-    throw InputError("store build: triangles hold " + std::to_string(soup.triangles.size()) +
-                     " indices, not a multiple of 3");
-  const uint64_t v = soup.positions.size() / 3, f = soup.triangles.size() / 3;
-  if (v > std::numeric_limits<uint32_t>::max())
-    throw InputError("store build: " + std::to_string(v) + " vertices, at most 2^32-1 supported");
-  if (f > std::numeric_limits<uint32_t>::max())
-    throw InputError("store build: " + std::to_string(f) + " faces, at most 2^32-1 supported");
-  uint64_t bad = first_violation(soup.triangles.size(), [&](uint64_t i) { return soup.triangles[i] >= v; });
-  if (bad < soup.triangles.size())
-    throw InputError("store build: face " + std::to_string(bad / 3) + " uses vertex " +
-                     std::to_string(soup.triangles[bad]) + " of " + std::to_string(v));
-}
-
-// Number of index ranges for the scan-based counting sorts below: one per thread (each part scans
-// the whole input and keeps the items whose bucket falls in its range, so items of a bucket stay
-// in input order without atomics), at most 8. The output never depends on it.
-uint32_t scan_parts(uint64_t buckets) {
-  const int threads = tbb::this_task_arena::max_concurrency();
-  return uint32_t(std::max<uint64_t>(1, std::min<uint64_t>({uint64_t(std::max(threads, 1)), 8, buckets})));
-}
-
-// Stable counting sort of items 0..n-1 by bucket_of(i) < buckets, split into scan_parts() bucket
-// ranges scanned in parallel: start gets buckets + 1 entries (bucket b holds positions
-// [start[b], start[b+1])), and place(i, position) is called once per item, in increasing i
-// within each bucket.
-template <typename BucketOf, typename Place>
-void counting_sort(uint64_t n, uint32_t buckets, BucketOf bucket_of, std::vector<uint32_t>& start, Place place) {
-  // Counts at [b + 2], after the prefix sum [b + 1] is b's start and becomes its end while
-  // placing (the cursor trick of build_vertex_face_adjacency).
-  start.assign(size_t(buckets) + 2, 0);
-  const uint32_t parts = scan_parts(buckets);
-  auto each_part = [&](auto&& body) {
-    tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
-      const uint32_t lo = uint32_t(uint64_t(buckets) * p / parts), hi = uint32_t(uint64_t(buckets) * (p + 1) / parts);
-      for (uint64_t i = 0; i < n; ++i)
-        if (const uint32_t b = bucket_of(i); b >= lo && b < hi) body(b, i);
-    });
-  };
-  each_part([&](uint32_t b, uint64_t) { ++start[size_t(b) + 2]; });
-  uint32_t sum = 0;
-  for (uint32_t& x : start) x = sum += x;
-  each_part([&](uint32_t b, uint64_t i) { place(i, start[size_t(b) + 1]++); });
-  start.pop_back();
-}
-
-// Input vertex id of each store vertex: sorted by (Hilbert key, input id), the id breaking ties
-// so the order is a pure function of the input. A stable counting sort on the key's top octree
-// levels (~2 vertices per bucket of a surface... up to a few hundred), then a comparison sort
-// inside each bucket: O(V) passes instead of a full O(V log V) sort.
-void hilbert_order(std::span<const float> positions, const Bbox& box, std::vector<uint32_t>& order) {
-  struct KeyId {
-    uint64_t key;
-    uint32_t id;
-    bool operator<(const KeyId& o) const { return key < o.key || (key == o.key && id < o.id); }
-  };
-  const uint32_t n = uint32_t(order.size());
-  std::vector<uint64_t> keys(n);
-  hilbert_keys(positions, make_hilbert_grid(box.lo, box.hi), keys);
-  int levels = 1;  // octree levels of the bucket index: 8^levels ≈ n/2 buckets, at most 2^21
-  while (levels < 7 && (uint64_t(1) << (3 * levels)) < n / 2) ++levels;
-  const int shift = 3 * kHilbertBits - 3 * levels;
-  std::vector<KeyId> sorted(n);
-  std::vector<uint32_t> start;
-  counting_sort(
-      n, uint32_t(1) << (3 * levels), [&](uint64_t v) { return uint32_t(keys[v] >> shift); }, start,
-      [&](uint64_t v, uint32_t at) { sorted[at] = {keys[v], uint32_t(v)}; });
-  std::vector<uint64_t>().swap(keys);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, start.size() - 1, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t b = r.begin(); b != r.end(); ++b) std::sort(sorted.begin() + start[b], sorted.begin() + start[b + 1]);
-  });
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, n, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
-    for (uint32_t i = r.begin(); i != r.end(); ++i) order[i] = sorted[i].id;
-  });
-}
-
-// Stable counting sort of the input faces by owner (smallest new vertex id): fills `owned` (V+1
-// entries, faces of owner v are [owned[v], owned[v+1])) and writes the remapped triangles in that
-// order, corner order kept. Faces of one owner keep their input order, so the result is
-// deterministic.
-void sort_faces_by_owner(std::span<const uint32_t> in, std::span<const uint32_t> new_of_old,
-                         std::vector<uint32_t>& owned, std::vector<uint32_t>& out) {
-  const uint32_t v_count = uint32_t(new_of_old.size());
-  const uint64_t f_count = in.size() / 3;
-  std::vector<uint32_t> owner(f_count);
-  tbb::parallel_for(tbb::blocked_range<uint64_t>(0, f_count, kGrain), [&](const tbb::blocked_range<uint64_t>& r) {
-    for (uint64_t f = r.begin(); f != r.end(); ++f)
-      owner[f] = std::min({new_of_old[in[3 * f]], new_of_old[in[3 * f + 1]], new_of_old[in[3 * f + 2]]});
-  });
-  out.resize(3 * f_count);
-  counting_sort(
-      f_count, v_count, [&](uint64_t f) { return owner[f]; }, owned,
-      [&](uint64_t f, uint32_t at) {
-        for (int k = 0; k < 3; ++k) out[3 * size_t(at) + k] = new_of_old[in[3 * f + k]];
-      });
-}
-
-// Chunk boundaries: C = round(F / target) chunks of ~F/C owned faces each, cut at the vertex whose
-// first owned face is nearest to k·F/C (a vertex's owned faces are never split).
-std::vector<Chunk> cut_chunks(std::span<const uint32_t> owned, uint64_t target) {
-  const uint32_t v_count = uint32_t(owned.size() - 1);
-  const uint64_t f_count = owned.back();
-  std::vector<Chunk> chunks;
-  if (v_count == 0) return chunks;
-  const uint64_t c_count = std::max<uint64_t>(1, (f_count + target / 2) / target);
-  uint32_t begin = 0;
-  for (uint64_t k = 1; k <= c_count; ++k) {
-    uint32_t end = v_count;
-    if (k < c_count) {
-      const uint64_t goal = (k * f_count + c_count / 2) / c_count;
-      end = uint32_t(std::lower_bound(owned.begin(), owned.end(), goal) - owned.begin());
-      if (end > 0 && goal - owned[end - 1] < owned[end] - goal) --end;
-      if (end <= begin || end >= v_count) continue;  // a giant fan swallowed this cut
-    }
-    Chunk c;
-    c.vertex_begin = begin;
-    c.vertex_end = end;
-    c.face_begin = owned[begin];
-    c.face_end = owned[end];
-    chunks.push_back(c);
-    begin = end;
-  }
-  return chunks;
-}
-
-// Per-thread scratch of chunk_extras.
-struct HaloScratch {
-  std::vector<uint32_t> faces, ring1, ring2;
-};
-
-void sort_unique(std::vector<uint32_t>& a) {
-  std::sort(a.begin(), a.end());
-  a.erase(std::unique(a.begin(), a.end()), a.end());
-}
-
-// Bounding box and halo face counts of one chunk. halo1 = faces not owned by the chunk that touch
-// one of its vertices; halo3 = faces not owned by the chunk within 3 rings: touching a vertex at
-// graph distance ≤ 2 from the chunk (their vertices are then all within distance 3). Found by a
-// two-step BFS from the chunk's border, O(chunk size + halo size).
-void chunk_extras(const MeshView& m, Chunk& c, HaloScratch& s) {
-  Bbox box = bounding_box(m.positions, c.vertex_begin, c.vertex_end);
-  box.finish();
-  std::copy(box.lo, box.lo + 3, c.bbox_min);
-  std::copy(box.hi, box.hi + 3, c.bbox_max);
-  auto outside_v = [&](uint32_t v) { return v < c.vertex_begin || v >= c.vertex_end; };
-  auto outside_f = [&](uint64_t f) { return f < c.face_begin || f >= c.face_end; };
-  s.faces.clear();
-  s.ring1.clear();
-  for (uint32_t v = c.vertex_begin; v < c.vertex_end; ++v) {
-    for (uint32_t f : m.faces_of(v))
-      if (outside_f(f)) s.faces.push_back(f);
-    for (uint32_t u : m.neighbours(v))
-      if (outside_v(u)) s.ring1.push_back(u);
-  }
-  sort_unique(s.faces);
-  c.halo1_faces = s.faces.size();
-  sort_unique(s.ring1);
-  s.ring2.clear();
-  for (uint32_t u : s.ring1) {
-    for (uint32_t f : m.faces_of(u))
-      if (outside_f(f)) s.faces.push_back(f);
-    for (uint32_t w : m.neighbours(u))
-      if (outside_v(w) && !std::binary_search(s.ring1.begin(), s.ring1.end(), w)) s.ring2.push_back(w);
-  }
-  sort_unique(s.ring2);
-  for (uint32_t w : s.ring2)
-    for (uint32_t f : m.faces_of(w))
-      if (outside_f(f)) s.faces.push_back(f);
-  sort_unique(s.faces);
-  c.halo3_faces = s.faces.size();
-}
 
 // ---------------------------------------------------------------------------------------------
 // Files
@@ -312,10 +84,13 @@ struct Mapping {
 struct MeshStore::Impl {
   StoreHeader header;
   // Arrays of a store built in RAM (empty for an opened store).
-  std::vector<float> positions;
-  std::vector<uint32_t> triangles, vertex_vertex, vertex_face, original_ids;
-  std::vector<uint64_t> vv_offsets{0}, vf_offsets{0};  // V + 1 entries, also when empty
-  std::vector<uint8_t> flags;
+  // Filled by parallel passes: not zeroed first (DefaultInitVector). vertex_face takes over the
+  // consumed soup's index array when there is one.
+  DefaultInitVector<float> positions;
+  DefaultInitVector<uint32_t> triangles, vertex_vertex, original_ids;
+  std::vector<uint32_t> vertex_face;
+  DefaultInitVector<uint64_t> vv_offsets{0}, vf_offsets{0};  // V + 1 entries, also when empty
+  DefaultInitVector<uint8_t> flags;
   std::vector<Chunk> chunks;
   // Files of an opened store.
   std::vector<Mapping> mappings;
@@ -393,9 +168,9 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
     hilbert_order(soup.positions, box, s.original_ids);
   else
     std::iota(s.original_ids.begin(), s.original_ids.end(), 0u);
-  std::vector<uint32_t> owned;
+  DefaultInitVector<uint32_t> owned;
   {
-    std::vector<uint32_t> new_of_old(v_count);
+    DefaultInitVector<uint32_t> new_of_old(v_count);
     s.positions.resize(3 * size_t(v_count));
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, v_count, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
       for (uint32_t i = r.begin(); i != r.end(); ++i) {
@@ -407,10 +182,15 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
     hand_over("positions.f32", s.positions);
     hand_over("original_ids.u32", s.original_ids);
     // 2. Faces remapped and sorted by owner.
-    sort_faces_by_owner(soup.triangles, new_of_old, owned, s.triangles);
+    sort_faces_by_owner(soup.triangles, consumed ? std::span(consumed->triangles) : std::span<uint32_t>(),
+                        new_of_old, owned, s.triangles);
   }
   hand_over("triangles.u32", s.triangles);
-  if (consumed) *consumed = MeshBuffers{};  // `soup` views it: not used past this point
+  if (consumed) {  // `soup` views it: not used past this point
+    // Its index array has the size of vf.u32 and is paged in already: reuse it.
+    s.vertex_face = std::move(consumed->triangles);
+    *consumed = MeshBuffers{};
+  }
 
   // 3. Adjacency and flags.
   build_vertex_face_adjacency(s.triangles, v_count, s.vf_offsets, s.vertex_face);
@@ -424,12 +204,9 @@ MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOp
 
   // 4. Chunks.
   s.chunks = cut_chunks(owned, options.faces_per_chunk);
-  std::vector<uint32_t>().swap(owned);
+  DefaultInitVector<uint32_t>().swap(owned);
   s.view_vectors();
-  tbb::enumerable_thread_specific<HaloScratch> scratch;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, s.chunks.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t c = r.begin(); c != r.end(); ++c) chunk_extras(s.view, s.chunks[c], scratch.local());
-  });
+  chunk_extras(s.view, s.chunks);
 
   StoreHeader& h = s.header;
   h.version = kStoreVersion;

@@ -55,8 +55,9 @@ class MeshStore {
   /// of ~faces_per_chunk owned faces with bbox and halo counts (halo1: faces not owned by the
   /// chunk touching its vertices; halo3: not owned, touching a vertex ≤ 2 edges from the chunk).
   /// O(V log V + F) time, TBB-parallel, output independent of the thread count. Peak memory
-  /// beyond the soup ≈ 1.0-1.1× the store size (temporaries are freed before the adjacency is
-  /// built). Throws InputError for indices ≥ V, V or F ≥ 2^32, or faces_per_chunk == 0.
+  /// beyond the soup ≈ 1.1-1.2× the store size (most temporaries are freed before the adjacency
+  /// is built; vertex→vertex needs V extra entries while it runs). Throws InputError for
+  /// indices ≥ V, V or F ≥ 2^32, or faces_per_chunk == 0.
   static MeshStore build(const TriangleSoupView& soup, const StoreBuildOptions& options = {});
   /// Same, consuming `soup`: its arrays are freed as soon as they have been copied into the
   /// store, which lowers the peak memory of ingesting a file by the soup's size.

@@ -1,7 +1,12 @@
 #include "core/adjacency.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
+#include <algorithm>
+#include <optional>
+#include <random>
+#include <set>
 #include <vector>
 
 #include "core/mesh_view.h"
@@ -119,6 +124,74 @@ TEST(Adjacency, FansOfAnySizeAndOrientation) {
           EXPECT_EQ(a.ring(v).size(), on_cut ? 3u : 4u) << v;
         }
       }
+}
+
+// Rings checked against sets, on a mesh whose vertex blocks (4096 vertices) include clean ones
+// (a grid: every ring fits deg_f + 1) and ones with many multi-fan vertices, whose rings
+// overflow that bound: stars of triangles meeting only at their centre, random triangles.
+TEST(Adjacency, RingsMatchSetsWhenVerticesHaveManyFans) {
+  std::vector<uint32_t> tri;
+  const uint32_t side = 80;  // grid vertices 0 .. 6399
+  for (uint32_t i = 0; i + 1 < side; ++i)
+    for (uint32_t j = 0; j + 1 < side; ++j) {
+      const uint32_t a = i * side + j, b = a + 1, c = a + side, d = c + 1;
+      tri.insert(tri.end(), {a, b, d, a, d, c});
+    }
+  uint32_t next = side * side;
+  for (int star = 0; star < 200; ++star) {  // centre + 10 separate triangles: ring 20, deg 10
+    const uint32_t centre = next++;
+    for (int k = 0; k < 10; ++k, next += 2) tri.insert(tri.end(), {centre, next, next + 1});
+  }
+  std::mt19937 rng(7);
+  const uint32_t first_random = next, v_count = next + 3000;
+  std::uniform_int_distribution<uint32_t> pick(first_random, v_count - 1);
+  for (int k = 0; k < 6000; ++k) tri.insert(tri.end(), {pick(rng), pick(rng), pick(rng)});
+  Adjacency a(tri, v_count);
+  std::vector<std::set<uint32_t>> sets(v_count);
+  for (size_t f = 0; f < tri.size(); f += 3)
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        if (tri[f + i] != tri[f + j]) sets[tri[f + i]].insert(tri[f + j]);
+  for (uint32_t v = 0; v < v_count; ++v)
+    ASSERT_EQ(a.ring(v), V(sets[v].begin(), sets[v].end())) << v;
+  EXPECT_EQ(a.ring(side * side).size(), 20u);
+}
+
+// Big enough for the parallel paths (several corner ranges, several ring blocks): the same CSR
+// arrays with 1, 2 and 8 threads, equal to a direct serial construction.
+TEST(Adjacency, LargeMeshSameForAnyThreadCount) {
+  std::vector<uint32_t> tri;
+  const uint32_t side = 300;
+  for (uint32_t i = 0; i + 1 < side; ++i)
+    for (uint32_t j = 0; j + 1 < side; ++j) {
+      const uint32_t a = i * side + j, b = a + 1, c = a + side, d = c + 1;
+      tri.insert(tri.end(), {a, b, d, a, d, c});
+    }
+  std::mt19937 rng(11);
+  std::shuffle(tri.begin(), tri.end(), rng);  // scattered corners: every range touches every vertex
+  const uint32_t v_count = side * side;
+  std::vector<std::vector<uint32_t>> lists(v_count);
+  for (size_t i = 0; i < tri.size(); ++i) lists[tri[i]].push_back(uint32_t(i / 3));
+  std::vector<uint64_t> expected_off{0};
+  std::vector<uint32_t> expected_vf;
+  for (const auto& l : lists) {
+    expected_vf.insert(expected_vf.end(), l.begin(), l.end());
+    expected_off.push_back(expected_vf.size());
+  }
+  std::optional<Adjacency> reference;
+  for (int threads : {1, 2, 8}) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    Adjacency a(tri, v_count);
+    EXPECT_EQ(a.vf_off, expected_off) << threads;
+    EXPECT_EQ(a.vf, expected_vf) << threads;
+    if (!reference) {
+      reference.emplace(std::move(a));
+      continue;
+    }
+    EXPECT_EQ(a.vv_off, reference->vv_off) << threads;
+    EXPECT_EQ(a.vv, reference->vv) << threads;
+    EXPECT_EQ(a.flags, reference->flags) << threads;
+  }
 }
 
 TEST(Adjacency, EmptyMesh) {

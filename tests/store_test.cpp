@@ -15,6 +15,7 @@
 #include <set>
 
 #include "core/errors.h"
+#include "core/hilbert.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {
@@ -289,6 +290,25 @@ TEST(Store, HilbertOrderIsLocal) {
   EXPECT_LT(hilbert_spread, 0.05 * random_spread);
 }
 
+// The vertex order is exactly (Hilbert key, input id), also with many vertices in one cell
+// (duplicates: ties broken by id) and crowded buckets, on enough vertices for parallel sorts.
+TEST(Store, HilbertOrderIsSortedByKeyThenInputId) {
+  MeshBuffers mesh = shuffled(make_icosphere(7), 5);  // 163,842 vertices
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> near(0.5f, 0.5001f);
+  for (int i = 0; i < 100; ++i) mesh.positions.insert(mesh.positions.end(), {0.25f, -0.5f, 0.125f});
+  for (int i = 0; i < 300; ++i) mesh.positions.insert(mesh.positions.end(), {near(rng), near(rng), 0.5f});
+  MeshStore store = MeshStore::build(mesh.view());
+  const StoreHeader& h = store.header();
+  const HilbertGrid grid = make_hilbert_grid(h.bbox_min, h.bbox_max);
+  std::vector<std::pair<uint64_t, uint32_t>> expected(mesh.vertex_count());
+  for (uint32_t v = 0; v < mesh.vertex_count(); ++v) expected[v] = {hilbert_key(grid, &mesh.positions[3 * v]), v};
+  std::sort(expected.begin(), expected.end());
+  const auto ids = store.original_vertex_ids();
+  ASSERT_EQ(ids.size(), expected.size());
+  for (size_t i = 0; i < ids.size(); ++i) ASSERT_EQ(ids[i], expected[i].second) << i;
+}
+
 TEST(Store, WriteOpenRoundTripIsByteIdentical) {
   MeshBuffers mesh = shuffled(make_torus(60, 40), 3);
   mesh.positions.insert(mesh.positions.end(), {7, 7, 7});  // an isolated vertex too
@@ -359,7 +379,8 @@ TEST(Store, LoadMeshOrStoreReadsFiles) {
 }
 
 TEST(Store, DeterministicAcrossRunsAndThreadCounts) {
-  MeshBuffers mesh = shuffled(make_icosphere(5), 9);
+  // 163,842 vertices and 327,680 faces: big enough for the multi-range counting sorts.
+  MeshBuffers mesh = shuffled(make_icosphere(7), 9);
   MeshStore a = MeshStore::build(mesh.view(), {.faces_per_chunk = 1000});
   MeshStore b = MeshStore::build(mesh.view(), {.faces_per_chunk = 1000});
   expect_same_arrays(a, b);

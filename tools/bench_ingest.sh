@@ -8,7 +8,9 @@
 # Env: RINGS/SEGMENTS (default 2236 x 2236 = 10.0M faces), DRAGON (path), KEEP=1 keeps the stores,
 # RUNS (default 1) ingests of each input, DISK=0 skips the disk bound: the time dd takes to write
 # as many bytes as the torus store, past the page cache (as the store writer does) and buffered +
-# fsync, which bounds what any ingest writing that store durably can reach.
+# fsync, which bounds what any ingest writing that store durably can reach. Each line shows the
+# 1-minute load average before the run: with other work on this 2-core machine the wall time (and
+# MB/s) suffers while the cpu time (user + sys) stays comparable.
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -66,6 +68,8 @@ fi
 bench() {
   local input="$1" name="$2" store="$work/$2.store" log="$work/$2.time" json="$work/$2.json"
   rm -rf "$store"
+  local load
+  load=$(cut -d' ' -f1 /proc/loadavg)  # other work on the machine shows in the wall time, not in cpu
   /usr/bin/time -v -o "$log" "$STREAMCVD" ingest "$input" "$store" --json >"$json"
   local in_bytes store_bytes wall peak_kb user sys
   in_bytes=$(stat -c %s "$input")
@@ -74,9 +78,9 @@ bench() {
   user=$(awk -F': ' '/User time/ {print $2}' "$log")
   sys=$(awk -F': ' '/System time/ {print $2}' "$log")
   peak_kb=$(awk -F': ' '/Maximum resident set size/ {print $2}' "$log")
-  awk -v n="$name" -v ib="$in_bytes" -v sb="$store_bytes" -v w="$wall" -v u="$user" -v s="$sys" -v pk="$peak_kb" 'BEGIN {
-    printf "%-8s input %8.1f MB  store %8.1f MB  wall %6.2f s (cpu %6.2f s)  %7.1f MB/s of input  peak RSS %8.1f MB = %.2f x store\n",
-           n, ib / 1e6, sb / 1e6, w, u + s, ib / 1e6 / (w > 0 ? w : 1e-9), pk * 1024 / 1e6, pk * 1024 / sb }'
+  awk -v n="$name" -v ib="$in_bytes" -v sb="$store_bytes" -v w="$wall" -v u="$user" -v s="$sys" -v pk="$peak_kb" -v ld="$load" 'BEGIN {
+    printf "%-8s input %8.1f MB  store %8.1f MB  wall %6.2f s (cpu %5.2f s = user %5.2f + sys %5.2f, load %5.2f)  %7.1f MB/s of input  peak RSS %8.1f MB = %.2f x store\n",
+           n, ib / 1e6, sb / 1e6, w, u + s, u, s, ld, ib / 1e6 / (w > 0 ? w : 1e-9), pk * 1024 / 1e6, pk * 1024 / sb }'
   [[ -s "$json" ]] && echo "         $(tr -d '\n' <"$json")"
   [[ "${KEEP:-0}" == 1 ]] || rm -rf "$store"
 }

@@ -55,6 +55,8 @@ struct RemeshResult {
   uint64_t defect_vertices = 0;      ///< output vertices still on a defect at the end (0 = valid)
   uint64_t defect_faces_removed = 0;   ///< faces deleted by the last-resort cleanup (holes opened)
   uint64_t defect_vertices_removed = 0;  ///< vertices deleted with them (output has fewer than N)
+  uint64_t flat_faces_removed = 0;   ///< zero-area faces dropped along the boundary (core/flat_faces.h)
+  uint64_t flat_face_flips = 0;      ///< zero-area faces removed by an edge flip or a few-ulp vertex move
   uint64_t duplicate_faces_removed = 0;
   uint64_t boundary_vertices_added = 0;
   uint64_t holes_closed = 0;

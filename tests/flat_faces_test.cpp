@@ -77,7 +77,8 @@ TEST(FlatFaces, NonFlatMeshIsUntouched) {
 }
 
 TEST(FlatFaces, DragonSeedsWithCollinearStripsHaveNoFlatFace) {
-  // Seeds 3, 5 (dropped), 9 and 12 (nudged) gave one flat strip triangle at N = 20000 (metric I).
+  // At N = 20000 (metric I) seed 5 gives one flat strip triangle (dropped), seed 9 one (nudged);
+  // seeds 3 and 12 gave one under the former cap of 12 repair rounds.
   const auto path = test::shared_data_path("stanford_dragon_vrip.ply");
   if (!path) GTEST_SKIP() << "../shared/data absent";
   MeshStore store = MeshStore::build(read_mesh(*path).view());

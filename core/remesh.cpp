@@ -4,6 +4,7 @@
 #include "core/curvature.h"
 #include "core/metric_field.h"
 #include "core/errors.h"
+#include "core/flat_faces.h"
 #include "core/lloyd.h"
 #include "core/repair.h"
 
@@ -296,6 +297,11 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
     result.quality_flips = q.flips;
     result.quality_moves = q.moves;
     result.seconds.optimize = seconds_since(t);
+  }
+  {  // safety net: collinear float32 vertices (a cluster vertex on a strip chord) give flat faces
+    const FlatFaceRepair flat = repair_flat_faces(dual.mesh.positions, dual.mesh.triangles);
+    result.flat_faces_removed = flat.faces_removed;
+    result.flat_face_flips = flat.flips + flat.nudges;
   }
   if (dual.mesh.face_count() == 0 && mesh.face_count() > 0)
     throw InputError("cannot build a valid surface with N=" + std::to_string(options.vertices) +

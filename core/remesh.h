@@ -22,7 +22,10 @@ struct RemeshOptions {
   /// Output vertex = the cluster centroid moved to the closest point of the input surface (among
   /// the triangles around the cluster). false = the raw centroid z_i of eq. 15, as in the paper.
   bool project_to_surface = true;
-  uint32_t repair_rounds = 12; ///< split/merge rounds around dual-mesh defects before the cleanup
+  /// Split/merge rounds around dual-mesh defects before the cleanup. Dragon at N = 20000:
+  /// some seeds need 13–32 rounds (a round fixes most defects but its splits make new ones);
+  /// 12 left those to the cleanup, which deletes faces and vertices. Rounds cost O(V) each.
+  uint32_t repair_rounds = 40;
   ClusteringOptions clustering;
   std::vector<float> density;  ///< optional ρ per vertex (size V), empty = uniform
   /// Gradation γ of eq. 20: ρ_j multiplied by the clamped curvature magnitude to the power γ
@@ -55,6 +58,8 @@ struct RemeshResult {
   uint64_t defect_vertices = 0;      ///< output vertices still on a defect at the end (0 = valid)
   uint64_t defect_faces_removed = 0;   ///< faces deleted by the last-resort cleanup (holes opened)
   uint64_t defect_vertices_removed = 0;  ///< vertices deleted with them (output has fewer than N)
+  uint64_t flat_faces_removed = 0;   ///< zero-area faces dropped along the boundary (core/flat_faces.h)
+  uint64_t flat_face_flips = 0;      ///< zero-area faces removed by an edge flip or a few-ulp vertex move
   uint64_t duplicate_faces_removed = 0;
   uint64_t boundary_vertices_added = 0;
   uint64_t holes_closed = 0;

@@ -10,8 +10,11 @@
 #include "core/clustering.h"
 #include "core/dual_mesh.h"
 #include "core/item_data.h"
+#include "core/remesh.h"
 #include "core/shapes.h"
+#include "streaming/mesh_io.h"
 #include "streaming/store.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
@@ -90,6 +93,25 @@ TEST(RepairLoop, CleanClusteringNeedsNoRound) {
   EXPECT_EQ(r.rounds, 0u);
   EXPECT_EQ(r.defect_vertices, 0u);
   EXPECT_EQ(labels, before);
+}
+
+TEST(RepairDragon, SlowSeedsConvergeWithinTheRoundBudget) {
+  // Dragon, N = 20000, metric I: these seeds needed 13 and 19 repair rounds. With the former
+  // cap of 12 the last-resort cleanup deleted faces and vertices (holes, fewer than N).
+  const auto path = test::shared_data_path("stanford_dragon_vrip.ply");
+  if (!path) GTEST_SKIP() << "../shared/data absent";
+  MeshStore store = MeshStore::build(read_mesh(*path).view());
+  for (uint64_t seed : {3, 10}) {
+    RemeshOptions o;
+    o.vertices = 20000;
+    o.seed = seed;
+    const RemeshResult r = remesh(store.view(), o);
+    EXPECT_GT(r.repair_rounds_used, 12u) << "seed " << seed;
+    EXPECT_LE(r.repair_rounds_used, o.repair_rounds) << "seed " << seed;
+    EXPECT_EQ(r.defect_faces_removed, 0u) << "seed " << seed;
+    EXPECT_EQ(r.defect_vertices, 0u) << "seed " << seed;
+    EXPECT_EQ(r.mesh.vertex_count() - r.boundary_vertices_added, 20000u) << "seed " << seed;
+  }
 }
 
 }  // namespace

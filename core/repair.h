@@ -43,7 +43,7 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
                        std::span<const int32_t> new_labels, SplitScratch& scratch);
 
 struct DefectRepairOptions {
-  uint32_t max_rounds = 12;     ///< repair rounds at most
+  uint32_t max_rounds = 40;     ///< repair rounds at most (RemeshOptions::repair_rounds)
   DualMeshOptions dual;         ///< the dual as it will be built (strips, closed holes)
   bool relax = true;            ///< relax the repaired clustering once at the end (kept only if valid)
   uint32_t relax_max_loops = 2000;

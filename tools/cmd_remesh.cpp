@@ -230,6 +230,8 @@ void add_remesh_command(CLI::App& app) {
                          {"repair_islands_dissolved", rm.repair_islands},
                          {"repair_relaxed", rm.repair_relaxed},
                          {"qem_sites_reverted", rm.sites_reverted},
+                         {"flat_faces_removed", rm.flat_faces_removed},
+                         {"flat_faces_flipped_or_nudged", rm.flat_face_flips},
                          {"defect_faces_removed", rm.defect_faces_removed},
                          {"defect_vertices_removed", rm.defect_vertices_removed}};
       j["quality_pass"] = {{"enabled", !args->no_optimize}, {"flips", rm.quality_flips}, {"moves", rm.quality_moves}};

@@ -223,9 +223,7 @@ bool clusters_connected(const MeshView& mesh, std::span<const int32_t> labels, u
   return true;
 }
 
-ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                                     uint32_t cluster_count, const ClusteringOptions& options) {
-  ClusteringReport report;
+LoopOptions loop_options(const ClusteringOptions& options) {
   LoopOptions loop;
   loop.stop_fraction = options.near_convergence;
   loop.max_loops = options.max_loops;
@@ -235,6 +233,13 @@ ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items
   loop.threads = options.threads;
   loop.deterministic = options.deterministic;
   loop.region_vertices = options.region_vertices;
+  return loop;
+}
+
+ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                                     uint32_t cluster_count, const ClusteringOptions& options) {
+  ClusteringReport report;
+  LoopOptions loop = loop_options(options);
   // First convergence with centroid sites (I or A); the Q metrics then embed the QEM sites
   // (§V-C) and converge again before the cleaning.
   const Metric base = is_anisotropic(options.metric) ? Metric::A : Metric::I;

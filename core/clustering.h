@@ -108,6 +108,9 @@ double clustering_energy(const ItemData& items, std::span<const ClusterSums> sum
 ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                                      uint32_t cluster_count, const ClusteringOptions& options = {});
 
+/// The loop settings of a pass of `options` (unconstrained, stopping at near_convergence).
+LoopOptions loop_options(const ClusteringOptions& options);
+
 /// Loops of Algorithm 1 under the state's metric until no item moves, fewer than
 /// `stop_fraction`·V items moved, or `max_loops` (constrained: every move keeps the source
 /// cluster connected, checked on the vertex's 1-ring). Each committed move strictly lowers the

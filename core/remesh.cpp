@@ -230,14 +230,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   DefectRepairOptions repair_options;
   repair_options.max_rounds = options.repair_rounds;
   repair_options.dual = dual_options;
-  repair_options.relax_max_loops = options.clustering.max_loops;
-  repair_options.skip_unchanged = options.clustering.skip_unchanged;
-  repair_options.metric = metric;
-  repair_options.qem_threshold = options.clustering.qem_threshold;
-  repair_options.offset_update_loops = options.clustering.offset_update_loops;
-  repair_options.threads = options.clustering.threads;
-  repair_options.deterministic = options.clustering.deterministic;
-  repair_options.region_vertices = options.clustering.region_vertices;
+  repair_options.clustering = options.clustering;
   repair_options.relax = !lloyd;  // a Lloyd run's report stays pure Lloyd
   DefectRepairResult repair =
       repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options, result.clustering);

@@ -467,16 +467,12 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
       active[labels[v]] = 0;
       labels[v] = -1;
     }
-  ClusterState state = make_cluster_state(items, labels, K, options.metric, options.qem_threshold);
+  ClusterState state = make_cluster_state(items, labels, K, options.clustering.metric, options.clustering.qem_threshold);
   update_site_offsets(state);
-  LoopOptions relax;
+  LoopOptions relax = loop_options(options.clustering);
   relax.constrained = true;
-  relax.max_loops = options.relax_max_loops;
-  relax.skip_unchanged = options.skip_unchanged;
-  relax.offset_update_loops = options.offset_update_loops;
-  relax.threads = options.threads;
-  relax.deterministic = options.deterministic;
-  relax.region_vertices = options.region_vertices;
+  relax.stop_fraction = 0.0;
+  relax.on_loop = {};
   run_clustering_loops(mesh, items, labels, state, relax, report, active);
   for (uint32_t v = 0; v < V; ++v)
     if (before[v] >= 0 && frozen[before[v]]) labels[v] = before[v];

@@ -46,14 +46,9 @@ struct DefectRepairOptions {
   uint32_t max_rounds = 40;     ///< repair rounds at most (RemeshOptions::repair_rounds)
   DualMeshOptions dual;         ///< the dual as it will be built (strips, closed holes)
   bool relax = true;            ///< relax the repaired clustering once at the end (kept only if valid)
-  uint32_t relax_max_loops = 2000;
-  bool skip_unchanged = true;   ///< the modified-clusters skip during the relaxation
-  Metric metric = Metric::I;    ///< energy of the relaxation (ClusteringOptions)
-  double qem_threshold = 1e-2;
-  uint32_t offset_update_loops = 5;
-  uint32_t threads = 1;         ///< relaxation threads (ClusteringOptions::threads)
-  bool deterministic = false;
-  uint32_t region_vertices = 0;
+  /// Energy and loop settings of the relaxation (metric, QEM threshold, threads, ...); its
+  /// on_loop and near_convergence are not used.
+  ClusteringOptions clustering;
 };
 
 struct DefectRepairResult {

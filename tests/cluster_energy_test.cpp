@@ -13,15 +13,12 @@
 #include "core/metric_field.h"
 #include "core/shapes.h"
 #include "streaming/store.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
 
-struct Stored {
-  MeshStore store;
-  MeshView view;
-  explicit Stored(const MeshBuffers& soup) : store(MeshStore::build(soup.view())), view(store.view()) {}
-};
+using Stored = test::StoredMesh;
 
 // Random symmetric positive definite tensors (B Bᵀ + 0.1 I), 6 floats per vertex.
 std::vector<float> random_tensors(uint32_t V, uint64_t seed) {

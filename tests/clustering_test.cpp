@@ -19,12 +19,7 @@
 namespace streamcvd {
 namespace {
 
-// A store built in RAM and its view (the view points into the store).
-struct Stored {
-  MeshStore store;
-  MeshView view;
-  explicit Stored(const MeshBuffers& soup) : store(MeshStore::build(soup.view())), view(store.view()) {}
-};
+using Stored = test::StoredMesh;
 
 // Appends `b` to `a` as a separate component.
 void append(MeshBuffers& a, const MeshBuffers& b) {

@@ -17,6 +17,7 @@
 #include "core/mesh_stats.h"
 #include "core/shapes.h"
 #include "streaming/store.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {

@@ -24,11 +24,7 @@
 namespace streamcvd {
 namespace {
 
-struct Stored {
-  MeshStore store;
-  MeshView view;
-  explicit Stored(const MeshBuffers& soup) : store(MeshStore::build(soup.view())), view(store.view()) {}
-};
+using Stored = test::StoredMesh;
 
 struct Case {
   std::string name;

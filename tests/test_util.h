@@ -7,6 +7,7 @@
 
 #include "core/shapes.h"
 #include "streaming/mesh_io.h"
+#include "streaming/store.h"
 
 namespace streamcvd::test {
 
@@ -16,5 +17,12 @@ std::string data_path(const std::string& name);
 std::optional<std::string> shared_data_path(const std::string& name);
 /// A fresh empty directory under the system temp dir, unique per call.
 std::filesystem::path temp_dir(const std::string& tag);
+
+/// A store built in RAM from a soup, and its view (the view points into the store).
+struct StoredMesh {
+  MeshStore store;
+  MeshView view;
+  explicit StoredMesh(const MeshBuffers& soup) : store(MeshStore::build(soup.view())), view(store.view()) {}
+};
 
 }  // namespace streamcvd::test

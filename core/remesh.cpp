@@ -169,7 +169,9 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   std::vector<float> sampling_density;  // A/AQ: the metric's area factor, for the initial sampling
   std::vector<float> tensors;
   if (options.gradation != 0 || is_anisotropic(metric)) {
-    const Curvature curvature = compute_curvature(mesh);
+    CurvatureOptions curvature_options;
+    curvature_options.rings = options.curvature_rings;
+    const Curvature curvature = compute_curvature(mesh, curvature_options);
     result.seconds.curvature = seconds_since(t);
     if (options.gradation != 0) {
       std::vector<float> gradation = gradation_density(mesh, curvature, options.gradation);

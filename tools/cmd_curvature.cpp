@@ -111,11 +111,13 @@ void add_curvature_command(CLI::App& app) {
   cmd->add_option("input", args->input, "Mesh file or store directory")->required();
   cmd->add_option("-o,--output", args->output, "Output PLY (.ply or .ply.zst)")->required();
   cmd->add_flag("--ascii", args->ascii, "Write an ascii PLY instead of binary little-endian");
-  cmd->add_option("--rings", args->options.rings, "Neighbourhood of the fit, in edges (1-5)")
+  cmd->add_option("--rings", args->options.rings,
+                  "Neighbourhood of the fit, in edges (1-10); noisy scans want more (8 keeps k1, k2 within 10% "
+                  "at 1% noise)")
       ->capture_default_str()
-      ->check(CLI::Range(1, 5));
+      ->check(CLI::Range(1, 10));
   cmd->add_option("--min-neighbours", args->options.min_neighbours,
-                  "Grow the ring (up to 5) while fewer neighbours, then give up (k = 0)")
+                  "Grow the ring (up to max(5, --rings)) while fewer neighbours, then give up (k = 0)")
       ->capture_default_str()
       ->check(CLI::Range(0, 1000));
   cmd->add_option("--threads", args->threads, "Worker threads (0: every core)")

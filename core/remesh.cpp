@@ -29,15 +29,6 @@ double process_cpu_seconds() {
   return double(std::clock()) / CLOCKS_PER_SEC;
 }
 
-// Output position of every cluster: its site under the metric (centroid, anisotropic centroid,
-// or QEM point for the Q metrics).
-std::vector<double> metric_sites(const ItemData& items, std::span<const int32_t> labels, uint32_t K, Metric metric,
-                                 double qem_threshold) {
-  ClusterState state = make_cluster_state(items, labels, K, metric, qem_threshold);
-  update_site_offsets(state);
-  return cluster_sites(items, state);
-}
-
 // Moves each cluster's representative to the closest point of the input surface among the
 // triangles around the cluster's vertices: centroids of curved clusters lie off the surface
 // (inside convex parts), which costs approximation accuracy for nothing.
@@ -245,19 +236,21 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   result.seconds.repair = repair.repair_seconds;
   result.seconds.dual = repair.check_seconds;
   t = std::chrono::steady_clock::now();
-  DualMesh dual = build_dual_mesh(mesh, labels, K, metric_sites(items, labels, K, metric, options.clustering.qem_threshold),
-                                  dual_options, &boundary_loops);
+  // The sites of the final clustering under its metric: centroid, anisotropic centroid, or
+  // QEM point. Computed once, for the dual and for the final placement below.
+  ClusterState state = make_cluster_state(items, labels, K, metric, options.clustering.qem_threshold);
+  update_site_offsets(state);
+  result.final_energy = state_energy(items, state);
+  std::vector<double> z = cluster_sites(items, state);
+  DualMesh dual = build_dual_mesh(mesh, labels, K, z, dual_options, &boundary_loops);
   std::vector<uint32_t> defects = find_manifold_defects(dual.mesh.view());
   result.seconds.dual += seconds_since(t);
   // Final placement (defects do not depend on positions, so it is done once, here). QEM sites
   // already lie on the surface's features; centroids are projected onto the surface.
   {
-    ClusterState state = make_cluster_state(items, labels, K, metric, options.clustering.qem_threshold);
-    update_site_offsets(state);
-    result.final_energy = state_energy(items, state);
-    std::vector<double> z = cluster_sites(items, state);
     if (uses_quadrics(metric)) {
-      std::vector<double> fallback = cluster_sites(items, make_cluster_state(items, labels, K, metric, options.clustering.qem_threshold));
+      state.use_offsets = false;  // the centroids themselves, the fallback of needle triangles
+      std::vector<double> fallback = cluster_sites(items, state);
       if (options.project_to_surface) project_onto_clusters(mesh, labels, fallback);
       place_output_vertices(dual, z);
       result.sites_reverted = revert_needle_sites(dual, z, fallback);

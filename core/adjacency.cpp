@@ -220,12 +220,16 @@ uint8_t vertex_flags(std::span<const uint32_t> triangles, std::span<const uint32
 }  // namespace
 
 template <typename Offsets, typename Indices>
-void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t vertex_count, Offsets& offsets,
-                                 Indices& faces) {
+void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t first_vertex, uint32_t vertex_count,
+                                 Offsets& offsets, Indices& faces) {
   const size_t corners = triangles.size() - triangles.size() % 3;
   assert(corners / 3 <= UINT32_MAX);
+  // Corners of the range, as local vertex ids; others map to vertex_count (a sink slot).
+  auto local = [&](size_t i) {
+    const uint32_t v = triangles[i] - first_vertex;  // wraps for ids below the range
+    return v < vertex_count ? v : vertex_count;
+  };
   offsets.resize(size_t(vertex_count) + 2);
-  faces.resize(corners);  // a no-op when the caller passes a reused array of that size
   const uint32_t ranges = item_ranges(corners);
   if (ranges > 1 && corners <= UINT32_MAX) {
     // Each task takes a contiguous range of corners, counts them per vertex in its own array,
@@ -235,9 +239,9 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
     std::vector<std::vector<uint32_t>> cursor(ranges);
     auto range_of = [&](uint32_t r) { return std::pair(corners * r / ranges, corners * (r + 1) / ranges); };
     tbb::parallel_for(uint32_t(0), ranges, [&](uint32_t r) {
-      cursor[r].assign(vertex_count, 0);  // here, so that each task pages in its own array
+      cursor[r].assign(size_t(vertex_count) + 1, 0);  // here, so that each task pages in its own array
       const auto [lo, hi] = range_of(r);
-      for (size_t i = lo; i < hi; ++i) ++cursor[r][triangles[i]];
+      for (size_t i = lo; i < hi; ++i) ++cursor[r][local(i)];
     });
     // Prefix sum in (vertex, range) order, in parallel over vertex blocks: their totals, then
     // each block from its base (integer sums: the same for any split).
@@ -258,10 +262,12 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
       }
     });
     offsets[vertex_count] = base[kScanBlocks];
+    faces.resize(offsets[vertex_count]);  // a no-op when the caller passes a reused array of that size
     tbb::parallel_for(uint32_t(0), ranges, [&](uint32_t r) {
       uint32_t* at = cursor[r].data();
       const auto [lo, hi] = range_of(r);
-      for (size_t i = lo; i < hi; ++i) faces[at[triangles[i]]++] = uint32_t(i / 3);
+      for (size_t i = lo; i < hi; ++i)
+        if (const uint32_t v = local(i); v < vertex_count) faces[at[v]++] = uint32_t(i / 3);
     });
     offsets.pop_back();
     return;
@@ -276,19 +282,20 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t v
     tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
       const uint32_t lo = range_begin(vertex_count, parts, p), hi = range_begin(vertex_count, parts, p + 1);
       for (size_t i = 0; i < corners; ++i)
-        if (const uint32_t v = triangles[i]; v >= lo && v < hi) body(v, i);
+        if (const uint32_t v = local(i); v >= lo && v < hi) body(v, i);
     });
   };
   each_part([&](uint32_t v, size_t) { ++offsets[size_t(v) + 2]; });
   inclusive_prefix_sum(offsets);
+  faces.resize(offsets[size_t(vertex_count) + 1]);
   each_part([&](uint32_t v, size_t i) { faces[offsets[size_t(v) + 1]++] = uint32_t(i / 3); });
   offsets.pop_back();
 }
 
 template <typename Offsets, typename Indices>
-void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::span<const uint64_t> vf_offsets,
-                                   std::span<const uint32_t> vertex_face, Offsets& offsets, Indices& neighbours,
-                                   std::span<uint8_t> flags) {
+void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, uint32_t first_vertex,
+                                   std::span<const uint64_t> vf_offsets, std::span<const uint32_t> vertex_face,
+                                   Offsets& offsets, Indices& neighbours, std::span<uint8_t> flags) {
   assert(!vf_offsets.empty());
   assert(flags.empty() || flags.size() + 1 == vf_offsets.size());
   const uint32_t vertex_count = uint32_t(vf_offsets.size() - 1);
@@ -320,7 +327,7 @@ void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::spa
       const bool direct = !spill && at + 2 * faces.size() <= slot_end;
       uint32_t* out = direct ? neighbours.data() + at : s.ring.data();
       uint32_t size = 0;
-      const uint8_t f = vertex_flags(triangles, faces, v, s, size, out);
+      const uint8_t f = vertex_flags(triangles, faces, first_vertex + v, s, size, out);
       if (!flags.empty()) flags[v] = f;
       offsets[size_t(v) + 1] = size;
       if (!direct && !spill && at + size <= slot_end) {
@@ -358,14 +365,14 @@ void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, std::spa
   neighbours.swap(exact);
 }
 
-template void build_vertex_face_adjacency(std::span<const uint32_t>, uint32_t, std::vector<uint64_t>&,
+template void build_vertex_face_adjacency(std::span<const uint32_t>, uint32_t, uint32_t, std::vector<uint64_t>&,
                                           std::vector<uint32_t>&);
-template void build_vertex_face_adjacency(std::span<const uint32_t>, uint32_t, DefaultInitVector<uint64_t>&,
-                                          std::vector<uint32_t>&);
-template void build_vertex_vertex_adjacency(std::span<const uint32_t>, std::span<const uint64_t>,
+template void build_vertex_face_adjacency(std::span<const uint32_t>, uint32_t, uint32_t, DefaultInitVector<uint64_t>&,
+                                          DefaultInitVector<uint32_t>&);
+template void build_vertex_vertex_adjacency(std::span<const uint32_t>, uint32_t, std::span<const uint64_t>,
                                             std::span<const uint32_t>, std::vector<uint64_t>&, std::vector<uint32_t>&,
                                             std::span<uint8_t>);
-template void build_vertex_vertex_adjacency(std::span<const uint32_t>, std::span<const uint64_t>,
+template void build_vertex_vertex_adjacency(std::span<const uint32_t>, uint32_t, std::span<const uint64_t>,
                                             std::span<const uint32_t>, DefaultInitVector<uint64_t>&,
                                             DefaultInitVector<uint32_t>&, std::span<uint8_t>);
 

@@ -25,10 +25,13 @@ struct Chunk {
   uint64_t face_end = 0;
   float bbox_min[3] = {0, 0, 0};
   float bbox_max[3] = {0, 0, 0};
-  /// Faces outside the chunk touching its vertices (1-ring halo) and within 3 rings, counted
-  /// at build time so a scheduler can size halo buffers before loading them.
-  uint64_t halo1_faces = 0;
-  uint64_t halo3_faces = 0;
+  /// Faces the chunk does not own that touch its vertices (its 1-ring halo), counted at build
+  /// time so a scheduler can size halo buffers before loading them.
+  uint64_t halo_faces = 0;
+  /// Its neighbour chunks (sharing a face with it), ascending:
+  /// MeshView::chunk_neighbours[neighbour_begin, neighbour_begin + neighbour_count).
+  uint32_t neighbour_begin = 0;
+  uint32_t neighbour_count = 0;
 };
 static_assert(sizeof(Chunk) == 64, "Chunk is a 64-byte on-disk record");
 
@@ -52,6 +55,7 @@ struct MeshView {
   std::span<const uint32_t> vertex_face;            ///< incident face ids per vertex, ascending
   std::span<const uint8_t> vertex_flags;            ///< V, VertexFlag bits
   std::span<const Chunk> chunks;                    ///< contiguous vertex ranges covering [0, V)
+  std::span<const uint32_t> chunk_neighbours;       ///< neighbour chunk ids (see Chunk::neighbour_begin)
 
   uint32_t vertex_count() const { return static_cast<uint32_t>(positions.size() / 3); }
   uint64_t face_count() const { return triangles.size() / 3; }

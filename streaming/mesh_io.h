@@ -8,23 +8,11 @@
 
 #include "core/mesh_buffers.h"
 #include "core/mesh_view.h"
+#include "streaming/mesh_reader.h"
 
 namespace streamcvd {
 
 class InputStream;
-
-enum class MeshFormat { Ply, Obj, Off, Stl };
-
-/// Format from the file name (".ply", ".obj", ".off", ".stl", each optionally + ".zst",
-/// case-insensitive). Throws InputError for an unknown extension.
-MeshFormat format_from_path(const std::string& path);
-/// True when `path` ends in ".zst" (case-insensitive).
-bool has_zst_extension(const std::string& path);
-
-/// Reads any supported mesh file, choosing the reader from the extension and, failing that,
-/// from the content. Validates the result: indices in range, finite coordinates, V > 0.
-/// Throws InputError "<file>: line N|byte N: <problem>". Streams; O(file size) time.
-MeshBuffers read_mesh(const std::string& path);
 
 /// Per-format readers over an open stream; same contract as read_mesh.
 /// PLY: ascii, binary_little_endian and binary_big_endian; any extra element/property; any

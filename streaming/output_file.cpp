@@ -49,6 +49,7 @@ struct Slot {
   std::atomic<char> name[kSlotName];
 };
 Slot g_slots[kSlots];
+std::atomic<bool> g_anonymous{true};
 
 uint64_t next_word(uint64_t word, SlotState state) { return (((word >> 2) + 1) << 2) | state; }
 
@@ -80,19 +81,6 @@ void cleanup_handler(int sig) {
   // SA_RESETHAND restored the default action; the signal is blocked while we run, so it is
   // delivered (and kills the process with the right status) as soon as the handler returns.
   ::raise(sig);
-}
-
-void ignore_sigxfsz_once() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    struct sigaction old {};
-    if (::sigaction(SIGXFSZ, nullptr, &old) == 0 && !(old.sa_flags & SA_SIGINFO) && old.sa_handler == SIG_DFL) {
-      struct sigaction ign {};
-      ign.sa_handler = SIG_IGN;
-      sigemptyset(&ign.sa_mask);
-      ::sigaction(SIGXFSZ, &ign, nullptr);
-    }
-  });
 }
 
 uint64_t random_suffix() {
@@ -135,6 +123,21 @@ void remove_temp_files_now() noexcept {
   }
 }
 
+void ignore_file_size_signal() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    struct sigaction old {};
+    if (::sigaction(SIGXFSZ, nullptr, &old) == 0 && !(old.sa_flags & SA_SIGINFO) && old.sa_handler == SIG_DFL) {
+      struct sigaction ign {};
+      ign.sa_handler = SIG_IGN;
+      sigemptyset(&ign.sa_mask);
+      ::sigaction(SIGXFSZ, &ign, nullptr);
+    }
+  });
+}
+
+void set_anonymous_temp_files(bool enabled) { g_anonymous.store(enabled); }
+
 void install_signal_cleanup() {
   for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
     struct sigaction old {};
@@ -157,7 +160,7 @@ struct AtomicOutputFile::Zstd {
 };
 
 AtomicOutputFile::AtomicOutputFile(std::string path, bool compress, int zstd_level) : path_(std::move(path)) {
-  ignore_sigxfsz_once();
+  ignore_file_size_signal();
   size_t slash = path_.find_last_of('/');
   folder_ = slash == std::string::npos ? "." : slash == 0 ? "/" : path_.substr(0, slash);
   name_ = slash == std::string::npos ? path_ : path_.substr(slash + 1);
@@ -179,10 +182,15 @@ AtomicOutputFile::AtomicOutputFile(std::string path, bool compress, int zstd_lev
 
   std::string stem(1, '.');
   stem.append(name_, 0, kMaxNameInTemp).append(".tmp.").append(std::to_string(::getpid())).append(".");
+  // An anonymous file (O_TMPFILE) has no name until commit() links it in: even SIGKILL or a
+  // crash leaves nothing behind. File systems without it get a named temporary file instead,
+  // which the signal registry removes on SIGINT/SIGTERM/SIGHUP.
+  if (g_anonymous.load(std::memory_order_relaxed)) fd_ = ::openat(dir_fd_, ".", O_TMPFILE | O_RDWR | O_CLOEXEC, 0666);
+  anonymous_ = fd_ >= 0;
   for (int attempt = 0; fd_ < 0; ++attempt) {
     temp_name_ = stem + hex64(random_suffix());
     slot_ = register_temp(dir_fd_, temp_name_);  // before creating: see the registry comment
-    fd_ = ::openat(dir_fd_, temp_name_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    fd_ = ::openat(dir_fd_, temp_name_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     if (fd_ >= 0) break;
     int e = errno;
     unregister_temp(slot_);
@@ -209,14 +217,14 @@ AtomicOutputFile::AtomicOutputFile(std::string path, bool compress, int zstd_lev
 AtomicOutputFile::~AtomicOutputFile() { abandon(); }
 
 std::string AtomicOutputFile::temp_path() const {
-  if (done_) return {};
+  if (done_ || anonymous_) return {};
   return folder_ == "/" ? "/" + temp_name_ : folder_ + "/" + temp_name_;
 }
 
 void AtomicOutputFile::abandon() noexcept {
   if (fd_ >= 0) ::close(fd_);
   fd_ = -1;
-  if (!done_ && dir_fd_ >= 0 && !temp_name_.empty()) ::unlinkat(dir_fd_, temp_name_.c_str(), 0);
+  if (!done_ && dir_fd_ >= 0 && !temp_name_.empty() && !anonymous_) ::unlinkat(dir_fd_, temp_name_.c_str(), 0);
   unregister_temp(slot_);  // only after the file is gone, and before dir_fd_ can be reused
   slot_ = -1;
   if (dir_fd_ >= 0) ::close(dir_fd_);
@@ -369,6 +377,21 @@ void AtomicOutputFile::patch(uint64_t offset, const void* data, size_t n) {
   if (n > 0) std::memcpy(buffer_.get() + (offset - flushed_), p, n);
 }
 
+void AtomicOutputFile::read_back(uint64_t offset, void* dst, size_t n) {
+  if (done_) throw std::logic_error(path_ + ": read_back after commit or failure");
+  if (zstd_) throw std::logic_error(path_ + ": read_back() on a compressed file");
+  if (offset > written_ || n > written_ - offset) throw std::logic_error(path_ + ": read_back() past the written bytes");
+  flush_buffer();
+  char* p = static_cast<char*>(dst);
+  for (size_t done = 0; done < n;) {
+    const ssize_t r = ::pread(fd_, p + done, n - done, off_t(offset + done));
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) fail(std::string("cannot read back: ") + (r < 0 ? std::strerror(errno) : "short read"));
+    done += size_t(r);
+  }
+  ::posix_fadvise(fd_, off_t(offset), off_t(n), POSIX_FADV_DONTNEED);
+}
+
 void AtomicOutputFile::commit(bool sync_folder) {
   if (done_) throw std::logic_error(path_ + ": commit after commit or failure");
   flush_buffer();
@@ -384,6 +407,7 @@ void AtomicOutputFile::commit(bool sync_folder) {
     synced_ = ~uint64_t(0);  // the frame's epilogue went out after any sync()
   }
   if (synced_ != flushed_ && ::fsync(fd_) != 0) fail(std::string("fsync failed: ") + std::strerror(errno));
+  if (anonymous_) link_anonymous();
   int fd = fd_;
   fd_ = -1;
   if (::close(fd) != 0) fail(std::string("close failed: ") + std::strerror(errno));
@@ -398,6 +422,27 @@ void AtomicOutputFile::commit(bool sync_folder) {
     throw OutputError(error_at(path_, std::string("fsync of the folder failed: ") + std::strerror(e)));
   }
   abandon();
+}
+
+// Gives the anonymous file a temporary name, so that the rename below replaces the final path
+// atomically (linkat cannot overwrite). The name is registered for signal cleanup first, and the
+// file is named only once fully written and synced: the window is a rename long.
+void AtomicOutputFile::link_anonymous() {
+  const std::string proc = "/proc/self/fd/" + std::to_string(fd_);
+  for (int attempt = 0;; ++attempt) {
+    temp_name_ = "." + name_.substr(0, kMaxNameInTemp) + ".tmp." + std::to_string(::getpid()) + "." +
+                 hex64(random_suffix());
+    slot_ = register_temp(dir_fd_, temp_name_);
+    int r = ::linkat(AT_FDCWD, proc.c_str(), dir_fd_, temp_name_.c_str(), AT_SYMLINK_FOLLOW);
+    if (r != 0 && errno == ENOENT) r = ::linkat(fd_, "", dir_fd_, temp_name_.c_str(), AT_EMPTY_PATH);  // no /proc
+    if (r == 0) break;
+    const int e = errno;
+    unregister_temp(slot_);
+    slot_ = -1;
+    if (e == EEXIST && attempt < 16) continue;
+    fail(std::string("cannot link the written file into '") + folder_ + "': " + std::strerror(e));
+  }
+  anonymous_ = false;  // named now: abandon() removes it if the rename fails
 }
 
 void sync_directory(const std::string& folder) {

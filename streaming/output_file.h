@@ -1,7 +1,9 @@
-// Atomic output files: every byte streamcvd writes goes to a temporary file in the destination
-// folder (".<name>.tmp.<pid>.<random>") that is fsynced and renamed onto the final path only on
-// commit(). A failure, an exception unwinding past the writer, or (after install_signal_cleanup())
-// SIGINT/SIGTERM/SIGHUP never leaves a partial or truncated file behind.
+// Atomic output files: every byte streamcvd writes goes to an anonymous file (O_TMPFILE) in the
+// destination folder that is fsynced, linked under a temporary name and renamed onto the final
+// path only on commit(). A failure, an exception, a signal, even SIGKILL or a crash, never leaves
+// a partial file behind. On file systems without O_TMPFILE the file is a named temporary
+// (".<name>.tmp.<pid>.<random>") from the start, removed on failure and (after
+// install_signal_cleanup()) on SIGINT/SIGTERM/SIGHUP.
 //
 // Seeking back: patch() rewrites already written bytes of an *uncompressed* file (a streamed
 // writer that learns its face count at the end patches it into a fixed-width header field).
@@ -25,7 +27,11 @@ class AtomicOutputFile {
   /// Opens a temporary file next to `path`. With `compress`, everything written goes through one
   /// streaming zstd frame (with checksum) at `zstd_level`. Throws OutputError "<path>: <problem>"
   /// when the folder is missing, not a folder, not writable, or `path` names a directory.
-  /// Ignores SIGXFSZ process-wide (if it has its default action) so that a file-size limit
+  /// Whether new AtomicOutputFiles start anonymous (O_TMPFILE, the default where the file system
+/// supports it) or as named temporaries (the fallback path). For tests of the fallback.
+void set_anonymous_temp_files(bool enabled);
+
+/// Ignores SIGXFSZ process-wide (if it has its default action) so that a file-size limit
   /// (`ulimit -f`) surfaces as an EFBIG error instead of killing the process.
   explicit AtomicOutputFile(std::string path, bool compress = false, int zstd_level = 3);
   /// Without commit(): closes and removes the temporary file. Never throws.
@@ -56,6 +62,9 @@ class AtomicOutputFile {
   /// followed by fsync. Throws OutputError like write().
   void write_direct(const void* data, size_t n);
 
+  /// Hands the buffered bytes to the file (not durable yet). Throws OutputError.
+  void flush() { flush_buffer(); }
+
   /// Flushes and makes the temporary file's bytes durable (fdatasync) without renaming it, so a
   /// caller can sync many files (e.g. in parallel) before committing any; commit() then skips
   /// its own fsync unless more bytes were written. Throws OutputError (temp file removed).
@@ -66,15 +75,24 @@ class AtomicOutputFile {
   /// bytes_written(); OutputError on an I/O error.
   void patch(uint64_t offset, const void* data, size_t n);
 
+  /// Copies n bytes at `offset` of what was written (uncompressed files; flushes first), for a
+  /// writer that reads its own output back. The bytes read are dropped from the page cache.
+  /// Throws std::logic_error past bytes_written(), OutputError on an I/O error.
+  void read_back(uint64_t offset, void* dst, size_t n);
+
   /// Flushes, fsyncs the file, renames it onto the final path and fsyncs the folder (with
   /// `sync_folder` false the caller does that once for many files, see sync_directory()).
   /// Throws OutputError (and removes the temporary file) on failure.
   void commit(bool sync_folder = true);
 
+  /// The open descriptor (e.g. to map a finished scratch file that is never committed); −1 once
+  /// committed or failed.
+  int descriptor() const { return fd_; }
   /// Logical bytes written so far (before compression).
   uint64_t bytes_written() const { return written_; }
   const std::string& path() const { return path_; }
-  /// Full path of the temporary file (empty once committed or failed).
+  /// Full path of the named temporary file (empty once committed or failed, and for an
+  /// anonymous file, which has no name until commit()).
   std::string temp_path() const;
   bool compressed() const { return zstd_ != nullptr; }
 
@@ -86,6 +104,7 @@ class AtomicOutputFile {
   void write_raw(const char* data, size_t n);    // → fd, no buffering
   [[noreturn]] void fail(const std::string& problem);
   void abandon() noexcept;                       // close + unlink temp + unregister
+  void link_anonymous();                         // O_TMPFILE file → temporary name, before the rename
 
   std::string path_;
   std::string folder_;      // destination folder as given ("." when the path has none)
@@ -102,6 +121,7 @@ class AtomicOutputFile {
   struct Zstd;
   std::unique_ptr<Zstd> zstd_;
   bool done_ = false;       // committed or failed
+  bool anonymous_ = false;  // O_TMPFILE: no name on disk until commit()
 };
 
 /// fsyncs a folder, making renames and removals inside it durable. File systems that cannot
@@ -117,6 +137,14 @@ void write_file_atomic(const std::string& path, std::string_view contents);
 /// not the default (e.g. ignored under nohup, or a handler of the application) are left alone.
 /// Idempotent; call once early in main().
 void install_signal_cleanup();
+
+/// Whether new AtomicOutputFiles start anonymous (O_TMPFILE, the default where the file system
+/// supports it) or as named temporaries (the fallback path). For tests of the fallback.
+void set_anonymous_temp_files(bool enabled);
+
+/// Ignores SIGXFSZ process-wide when it has its default action (idempotent), so that a file-size
+/// limit (`ulimit -f`) surfaces as an EFBIG write error instead of killing the process.
+void ignore_file_size_signal();
 
 /// Removes every live temporary file of this process. Async-signal-safe (only unlinkat over a
 /// fixed registry), for applications that install their own signal handlers.

@@ -72,6 +72,7 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
   double load_seconds = 0, store_seconds = 0;
   if (is_store_directory(input)) {
     store = MeshStore::open(input);
+    store.validate_all();
     load_seconds = seconds_since(t);
   } else {
     MeshBuffers soup = read_mesh(input);

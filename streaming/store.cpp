@@ -9,20 +9,19 @@
 
 #include <algorithm>
 #include <bit>
+#include <cstdlib>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
-#include <limits>
-#include <numeric>
+#include <fstream>
 #include <optional>
+#include <limits>
+#include <map>
+#include <sstream>
 #include <type_traits>
 
-#include "core/adjacency.h"
-#include "core/default_init_vector.h"
 #include "core/errors.h"
-#include "streaming/mesh_io.h"
 #include "streaming/output_file.h"
-#include "streaming/store_build.h"
 #include "streaming/store_writer.h"
 
 namespace streamcvd {
@@ -31,15 +30,10 @@ static_assert(std::endian::native == std::endian::little, "the store's arrays ar
 static_assert(std::is_trivially_copyable_v<StoreHeader> && sizeof(StoreHeader) == 104,
               "StoreHeader is an on-disk record");
 
-using namespace store_build;  // the build passes
-
 namespace {
-constexpr uint32_t kStoreVersion = 1;
+constexpr uint32_t kStoreVersion = 2;
 constexpr const char* kHeaderFile = "header.bin";
-constexpr size_t kGrain = 1 << 14;
-
-// ---------------------------------------------------------------------------------------------
-// Files
+constexpr const char* kAttributesFile = "attributes.txt";
 
 // One array file of the store: its name, element size and entry count from the header.
 struct ArrayFile {
@@ -48,17 +42,21 @@ struct ArrayFile {
   uint64_t count;
 };
 
-std::vector<ArrayFile> array_files(const StoreHeader& h) {
-  return {{"positions.f32", 4, 3 * h.vertex_count},  {"triangles.u32", 4, 3 * h.face_count},
-          {"vv_offsets.u64", 8, h.vertex_count + 1}, {"vv.u32", 4, h.vertex_vertex_count},
-          {"vf_offsets.u64", 8, h.vertex_count + 1}, {"vf.u32", 4, h.vertex_face_count},
-          {"flags.u8", 1, h.vertex_count},           {"chunks.bin", sizeof(Chunk), h.chunk_count},
-          {"original_ids.u32", 4, h.vertex_count}};
-}
+enum ArrayIndex { kPositions, kTriangles, kVvOffsets, kVv, kVfOffsets, kVf, kFlags, kChunks, kNeighbours, kOriginal,
+                  kAttributes, kArrayCount };
 
-template <typename T>
-std::span<const std::byte> bytes_of(std::span<const T> s) {
-  return std::as_bytes(s);
+std::vector<ArrayFile> array_files(const StoreHeader& h) {
+  return {{"positions.f32", 4, 3 * h.vertex_count},
+          {"triangles.u32", 4, 3 * h.face_count},
+          {"vv_offsets.u64", 8, h.vertex_count + 1},
+          {"vv.u32", 4, h.vertex_vertex_count},
+          {"vf_offsets.u64", 8, h.vertex_count + 1},
+          {"vf.u32", 4, h.vertex_face_count},
+          {"flags.u8", 1, h.vertex_count},
+          {"chunks.bin", sizeof(Chunk), h.chunk_count},
+          {"chunk_neighbours.u32", 4, h.chunk_neighbour_count},
+          {"original_ids.u32", 4, h.vertex_count},
+          {"vertex_attributes.f32", 4, uint64_t(h.attribute_count) * h.vertex_count}};
 }
 
 // A mapped file's bytes as an array of T (the size was checked against the header).
@@ -71,11 +69,131 @@ std::span<const T> array_of(std::span<const std::byte> bytes) {
   throw InputError(error_at(directory + "/" + file, problem));
 }
 
-// A read-only mapping, unmapped with its owner.
-struct Mapping {
-  void* address = nullptr;
-  size_t length = 0;
+constexpr std::pair<ScalarType, const char*> kTypeNames[] = {
+    {ScalarType::I8, "char"}, {ScalarType::U8, "uchar"}, {ScalarType::I16, "short"}, {ScalarType::U16, "ushort"},
+    {ScalarType::I32, "int"}, {ScalarType::U32, "uint"}, {ScalarType::F32, "float"}, {ScalarType::F64, "double"}};
+
+std::string attributes_text(const std::vector<VertexAttribute>& attributes) {
+  std::string text;
+  for (const VertexAttribute& a : attributes)
+    for (const auto& [type, name] : kTypeNames)
+      if (type == a.type) text += a.name + " " + name + "\n";
+  return text;
+}
+
+// The store's arrays of a store built in RAM, filled front to back by the builder.
+class MemoryOutputs final : public StoreOutputs {
+ public:
+  ArrayOutput& array(const char* name) override { return arrays_[name]; }
+  void expect(const char* name, uint64_t bytes) override { arrays_[name].reserve(bytes); }
+  void read_back(const char* name, uint64_t offset, void* dst, size_t n) override {
+    std::memcpy(dst, arrays_.at(name).data().data() + offset, n);
+  }
+  std::vector<std::byte> take(const char* name) {
+    auto it = arrays_.find(name);
+    return it == arrays_.end() ? std::vector<std::byte>() : std::move(it->second.data());
+  }
+
+ private:
+  std::map<std::string, MemoryArrayOutput> arrays_;
 };
+
+// The arrays of a store written to a directory, each a stream of its own. The directory
+// writer (which invalidates an old store there) starts with the first array, so an input that
+// fails in its header or vertices leaves an existing store untouched.
+class DirectoryOutputs final : public StoreOutputs {
+ public:
+  explicit DirectoryOutputs(std::string directory) : directory_(std::move(directory)) {}
+  ArrayOutput& array(const char* name) override { return stream(name); }
+  void read_back(const char* name, uint64_t offset, void* dst, size_t n) override {
+    stream(name).read_back(offset, dst, n);
+  }
+  StoreArrayStream& stream(const char* name) {
+    auto it = streams_.find(name);
+    if (it == streams_.end()) it = streams_.emplace(name, &writer().stream(name)).first;
+    return *it->second;
+  }
+  StoreDirectoryWriter& writer() {
+    if (!writer_) writer_.emplace(directory_, /*background=*/false);
+    return *writer_;
+  }
+
+ private:
+  std::string directory_;
+  std::optional<StoreDirectoryWriter> writer_;
+  std::map<std::string, StoreArrayStream*> streams_;
+};
+
+// The arrays of a store kept in anonymous files of a work folder, mapped once built: a
+// temporary store for an input too large for RAM. Nothing is ever named, so nothing is left
+// behind whatever ends the process.
+class ScratchOutputs final : public StoreOutputs {
+ public:
+  explicit ScratchOutputs(std::string folder) : folder_(std::move(folder)) {}
+  ArrayOutput& array(const char* name) override { return stream(name); }
+  void read_back(const char* name, uint64_t offset, void* dst, size_t n) override {
+    stream(name).read_back(offset, dst, n);
+  }
+  StoreArrayStream& stream(const std::string& name) {
+    auto it = streams_.find(name);
+    if (it == streams_.end())
+      it = streams_.emplace(name, std::make_unique<StoreArrayStream>(folder_ + "/" + name, /*scratch=*/true)).first;
+    return *it->second;
+  }
+  const std::string& folder() const { return folder_; }
+
+ private:
+  std::string folder_;
+  std::map<std::string, std::unique_ptr<StoreArrayStream>> streams_;
+};
+
+// RAM when the store fits half the memory limit, else scratch files: decided by plan(), before
+// the first array exists.
+class AutoOutputs final : public StoreOutputs {
+ public:
+  AutoOutputs(uint64_t memory_limit, std::string folder) : limit_(memory_limit), folder_(std::move(folder)) {}
+  void plan(uint64_t vertices, uint64_t faces) override {
+    const uint64_t bytes = 52 * faces + 33 * vertices;  // the store's size, 52 B/face + 33 B/vertex
+    if (limit_ > 0 && bytes > limit_ / 2) scratch_.emplace(folder_);
+  }
+  ArrayOutput& array(const char* name) override { return out().array(name); }
+  void expect(const char* name, uint64_t bytes) override { out().expect(name, bytes); }
+  void read_back(const char* name, uint64_t offset, void* dst, size_t n) override { out().read_back(name, offset, dst, n); }
+  StoreOutputs& out() { return scratch_ ? static_cast<StoreOutputs&>(*scratch_) : ram_; }
+  MemoryOutputs& ram() { return ram_; }
+  ScratchOutputs* scratch() { return scratch_ ? &*scratch_ : nullptr; }
+
+ private:
+  uint64_t limit_;
+  std::string folder_;
+  MemoryOutputs ram_;
+  std::optional<ScratchOutputs> scratch_;
+};
+
+StoreHeader header_of(const StoreBuildResult& r, uint32_t attribute_count) {
+  StoreHeader h;
+  h.version = kStoreVersion;
+  h.chunk_count = uint32_t(r.chunks.size());
+  h.vertex_count = r.vertex_count;
+  h.face_count = r.face_count;
+  h.vertex_vertex_count = r.vertex_vertex_count;
+  h.vertex_face_count = 3 * r.face_count;
+  std::copy(r.bbox_min, r.bbox_min + 3, h.bbox_min);
+  std::copy(r.bbox_max, r.bbox_max + 3, h.bbox_max);
+  h.chunk_neighbour_count = r.chunk_neighbours.size();
+  h.input_vertex_count = r.report.input_vertices;
+  h.attribute_count = attribute_count;
+  return h;
+}
+
+// Reads `input` into `builder` (the reader's blocks go straight to the builder).
+void stream_file(const std::string& input, StoreBuilder& builder, const ReadOptions& read,
+                 const std::function<void(const BuildProgress&)>& progress) {
+  ReadOptions options = read;
+  if (progress && !options.progress)
+    options.progress = [&](uint64_t bytes, uint64_t total) { progress({"read", bytes, total}); };
+  read_mesh_stream(input, builder, options);
+}
 
 }  // namespace
 
@@ -83,205 +201,226 @@ struct Mapping {
 
 struct MeshStore::Impl {
   StoreHeader header;
-  // Arrays of a store built in RAM (empty for an opened store).
-  // Filled by parallel passes: not zeroed first (DefaultInitVector). vertex_face takes over the
-  // consumed soup's index array when there is one.
-  DefaultInitVector<float> positions;
-  DefaultInitVector<uint32_t> triangles, vertex_vertex, original_ids;
-  std::vector<uint32_t> vertex_face;
-  DefaultInitVector<uint64_t> vv_offsets{0}, vf_offsets{0};  // V + 1 entries, also when empty
-  DefaultInitVector<uint8_t> flags;
-  std::vector<Chunk> chunks;
-  // Files of an opened store.
-  std::vector<Mapping> mappings;
-  // What callers see, pointing into either.
+  std::string directory;                        // of an opened store ("" in RAM)
+  std::vector<std::vector<std::byte>> ram;      // arrays of a store built in RAM (by ArrayIndex)
+  struct Mapping {
+    void* address = nullptr;
+    size_t length = 0;
+  };
+  std::vector<Mapping> mappings;                // files of an opened store (by ArrayIndex)
+  std::vector<std::span<const std::byte>> bytes;  // every array, in RAM or mapped
+  std::vector<VertexAttribute> attributes;
   MeshView view;
   std::span<const uint32_t> original_view;
+  std::span<const float> attribute_view;
+  std::unique_ptr<std::atomic<uint8_t>[]> validated;  // per chunk
 
   Impl() = default;
   Impl(const Impl&) = delete;
   Impl& operator=(const Impl&) = delete;
   ~Impl() {
-    for (const Mapping& m : mappings) ::munmap(m.address, m.length);
+    for (const Mapping& m : mappings)
+      if (m.address) ::munmap(m.address, m.length);
   }
 
-  void view_vectors() {
-    view = {positions, triangles, vv_offsets, vertex_vertex, vf_offsets, vertex_face, flags, chunks};
-    original_view = original_ids;
-  }
-
-  // The arrays of view()/original_view in the order of array_files().
-  std::vector<std::span<const std::byte>> array_bytes() const {
-    return {bytes_of(view.positions),
-            bytes_of(view.triangles),
-            bytes_of(view.vertex_vertex_offsets),
-            bytes_of(view.vertex_vertex),
-            bytes_of(view.vertex_face_offsets),
-            bytes_of(view.vertex_face),
-            bytes_of(view.vertex_flags),
-            bytes_of(view.chunks),
-            bytes_of(original_view)};
+  void make_views() {
+    MeshView& m = view;
+    m.positions = array_of<float>(bytes[kPositions]);
+    m.triangles = array_of<uint32_t>(bytes[kTriangles]);
+    m.vertex_vertex_offsets = array_of<uint64_t>(bytes[kVvOffsets]);
+    m.vertex_vertex = array_of<uint32_t>(bytes[kVv]);
+    m.vertex_face_offsets = array_of<uint64_t>(bytes[kVfOffsets]);
+    m.vertex_face = array_of<uint32_t>(bytes[kVf]);
+    m.vertex_flags = array_of<uint8_t>(bytes[kFlags]);
+    m.chunks = array_of<Chunk>(bytes[kChunks]);
+    m.chunk_neighbours = array_of<uint32_t>(bytes[kNeighbours]);
+    original_view = array_of<uint32_t>(bytes[kOriginal]);
+    attribute_view = array_of<float>(bytes[kAttributes]);
+    validated = std::make_unique<std::atomic<uint8_t>[]>(header.chunk_count);
   }
 };
 
-MeshStore::MeshStore() : impl_(std::make_unique<Impl>()) { impl_->view_vectors(); }
+// Assembles a RAM store from the builder's outputs.
+struct StoreAssembly {
+  static MeshStore from_scratch(ScratchOutputs& out, StoreBuildResult& r);
+  static MeshStore from_memory(MemoryOutputs& out, StoreBuildResult& r) {
+    MeshStore store;
+    MeshStore::Impl& s = *store.impl_;
+    s.bytes.clear();
+    s.header = header_of(r, uint32_t(r.attributes.size()));
+    s.attributes = r.attributes;
+    const std::vector<ArrayFile> files = array_files(s.header);
+    s.ram.resize(kArrayCount);
+    for (int i = 0; i < kArrayCount; ++i) s.ram[i] = out.take(files[i].name);
+    auto put = [&](int i, const auto& v) {
+      s.ram[i].resize(v.size() * sizeof(v[0]));
+      if (!v.empty()) std::memcpy(s.ram[i].data(), v.data(), s.ram[i].size());
+    };
+    put(kChunks, r.chunks);
+    put(kNeighbours, r.chunk_neighbours);
+    for (int i = 0; i < kArrayCount; ++i) s.bytes.emplace_back(s.ram[i].data(), s.ram[i].size());
+    s.make_views();
+    for (uint32_t c = 0; c < s.header.chunk_count; ++c) s.validated[c] = 1;  // built here: valid
+    return store;
+  }
+};
+
+MeshStore StoreAssembly::from_scratch(ScratchOutputs& out, StoreBuildResult& r) {
+  MeshStore store;
+  MeshStore::Impl& s = *store.impl_;
+  s.bytes.clear();
+  s.ram.assign(kArrayCount, {});
+  s.header = header_of(r, uint32_t(r.attributes.size()));
+  s.attributes = r.attributes;
+  s.directory = out.folder();
+  out.array("chunks.bin").append(std::span<const Chunk>(r.chunks));
+  out.array("chunk_neighbours.u32").append(std::span<const uint32_t>(r.chunk_neighbours));
+  const std::vector<ArrayFile> files = array_files(s.header);
+  s.mappings.resize(kArrayCount);
+  for (int i = 0; i < kArrayCount; ++i) {
+    StoreArrayStream& a = out.stream(files[i].name);
+    a.finish();
+    const size_t size = size_t(a.bytes());
+    void* address = nullptr;
+    if (size > 0) {
+      address = ::mmap(nullptr, size, PROT_READ, MAP_SHARED, a.file().descriptor(), 0);
+      if (address == MAP_FAILED)
+        throw OutputError(error_at(out.folder(), std::string("cannot map a work file: ") + std::strerror(errno)));
+      s.mappings[i] = {address, size};
+    }
+    s.bytes.emplace_back(static_cast<const std::byte*>(address), size);
+  }
+  s.make_views();
+  for (uint32_t c = 0; c < s.header.chunk_count; ++c) s.validated[c] = 1;  // built here: valid
+  return store;  // the mappings keep the anonymous files alive once `out` closes them
+}
+
+MeshStore::MeshStore() : impl_(std::make_unique<Impl>()) {
+  impl_->header.vertex_count = 0;
+  impl_->ram.assign(kArrayCount, {});
+  // An empty store still has V + 1 = 1 offset per CSR.
+  impl_->ram[kVvOffsets].resize(8);
+  impl_->ram[kVfOffsets].resize(8);
+  for (auto& a : impl_->ram) impl_->bytes.emplace_back(a.data(), a.size());
+  impl_->make_views();
+}
 MeshStore::~MeshStore() = default;
 MeshStore::MeshStore(MeshStore&&) noexcept = default;
 MeshStore& MeshStore::operator=(MeshStore&&) noexcept = default;
 
 MeshStore MeshStore::build(const TriangleSoupView& soup, const StoreBuildOptions& options) {
-  return build_from(soup, options, nullptr, nullptr);
+  MemoryOutputs out;
+  StoreBuilder builder(out, options);
+  stream_soup(soup, builder);
+  return StoreAssembly::from_memory(out, builder.result());
 }
 
 MeshStore MeshStore::build(MeshBuffers&& soup, const StoreBuildOptions& options) {
   MeshBuffers owned = std::move(soup);
-  return build_from(owned.view(), options, &owned, nullptr);
+  return build(owned.view(), options);
 }
 
-MeshStore MeshStore::build_and_write(MeshBuffers&& soup, const std::string& directory,
-                                     const StoreBuildOptions& options) {
-  MeshBuffers owned = std::move(soup);
-  return build_from(owned.view(), options, &owned, &directory);
+MeshStore MeshStore::build_from_file(const std::string& input, const StoreBuildOptions& options,
+                                     const ReadOptions& read, StoreBuildReport* report,
+                                     std::function<void(const BuildProgress&)> progress) {
+  StoreBuildOptions o = options;
+  if (o.work_directory.empty()) {
+    const char* tmp = std::getenv("TMPDIR");
+    o.work_directory = tmp && *tmp ? tmp : "/tmp";
+  }
+  AutoOutputs out(o.memory_limit, o.work_directory);
+  StoreBuilder builder(out, o, progress);
+  stream_file(input, builder, read, progress);
+  if (report) *report = builder.result().report;
+  if (ScratchOutputs* scratch = out.scratch()) return StoreAssembly::from_scratch(*scratch, builder.result());
+  return StoreAssembly::from_memory(out.ram(), builder.result());
 }
 
-MeshStore MeshStore::build_from(const TriangleSoupView& soup, const StoreBuildOptions& options, MeshBuffers* consumed,
-                                const std::string* directory) {
-  check_soup(soup);
-  if (options.faces_per_chunk == 0) throw InputError("store build: faces_per_chunk must be positive");
-  // Writing while building: each array is handed to the writer thread as soon as it is final.
-  // Created only after the input checks, since it removes an older store's header.
-  std::optional<StoreDirectoryWriter> writer;
-  if (directory) writer.emplace(*directory, /*background=*/true);
-  auto hand_over = [&](const char* name, const auto& array) {
-    if (writer) writer->add(name, std::as_bytes(std::span(array)));
-  };
-  const uint32_t v_count = soup.vertex_count();
-  const uint64_t f_count = soup.face_count();
-  MeshStore store;
-  Impl& s = *store.impl_;
-  Bbox box = bounding_box(soup.positions, 0, v_count);
-  box.finish();
-
-  // 1. Vertex order (Hilbert curve), its inverse, positions in the new order.
-  s.original_ids.resize(v_count);
-  if (options.hilbert_order)
-    hilbert_order(soup.positions, box, s.original_ids);
-  else
-    std::iota(s.original_ids.begin(), s.original_ids.end(), 0u);
-  DefaultInitVector<uint32_t> owned;
-  {
-    DefaultInitVector<uint32_t> new_of_old(v_count);
-    s.positions.resize(3 * size_t(v_count));
-    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, v_count, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
-      for (uint32_t i = r.begin(); i != r.end(); ++i) {
-        const uint32_t old = s.original_ids[i];
-        new_of_old[old] = i;
-        for (int k = 0; k < 3; ++k) s.positions[3 * size_t(i) + k] = soup.positions[3 * size_t(old) + k];
-      }
-    });
-    hand_over("positions.f32", s.positions);
-    hand_over("original_ids.u32", s.original_ids);
-    // 2. Faces remapped and sorted by owner.
-    sort_faces_by_owner(soup.triangles, consumed ? std::span(consumed->triangles) : std::span<uint32_t>(),
-                        new_of_old, owned, s.triangles);
+MeshStore MeshStore::ingest(const std::string& input, const std::string& directory, const StoreBuildOptions& options,
+                            const ReadOptions& read, StoreBuildReport* report,
+                            std::function<void(const BuildProgress&)> progress) {
+  StoreBuildOptions o = options;
+  if (o.work_directory.empty()) o.work_directory = directory;
+  if (o.work_directory == directory) {  // scratch files go beside the store: the folder must exist
+    std::error_code ec;
+    std::filesystem::create_directories(directory, ec);
   }
-  hand_over("triangles.u32", s.triangles);
-  if (consumed) {  // `soup` views it: not used past this point
-    // Its index array has the size of vf.u32 and is paged in already: reuse it.
-    s.vertex_face = std::move(consumed->triangles);
-    *consumed = MeshBuffers{};
-  }
-
-  // 3. Adjacency and flags.
-  build_vertex_face_adjacency(s.triangles, v_count, s.vf_offsets, s.vertex_face);
-  hand_over("vf_offsets.u64", s.vf_offsets);
-  hand_over("vf.u32", s.vertex_face);
-  s.flags.resize(v_count);
-  build_vertex_vertex_adjacency(s.triangles, s.vf_offsets, s.vertex_face, s.vv_offsets, s.vertex_vertex, s.flags);
-  hand_over("vv_offsets.u64", s.vv_offsets);
-  hand_over("vv.u32", s.vertex_vertex);
-  hand_over("flags.u8", s.flags);
-
-  // 4. Chunks.
-  s.chunks = cut_chunks(owned, options.faces_per_chunk);
-  DefaultInitVector<uint32_t>().swap(owned);
-  s.view_vectors();
-  chunk_extras(s.view, s.chunks);
-
-  StoreHeader& h = s.header;
-  h.version = kStoreVersion;
-  h.chunk_count = uint32_t(s.chunks.size());
-  h.vertex_count = v_count;
-  h.face_count = f_count;
-  h.vertex_vertex_count = s.vertex_vertex.size();
-  h.vertex_face_count = s.vertex_face.size();
-  std::copy(box.lo, box.lo + 3, h.bbox_min);
-  std::copy(box.hi, box.hi + 3, h.bbox_max);
-  if (writer) {
-    hand_over("chunks.bin", s.chunks);
-    writer->finish(kHeaderFile, std::as_bytes(std::span(&h, 1)));
-  }
-  return store;
+  DirectoryOutputs out(directory);
+  StoreBuilder builder(out, o, progress);
+  stream_file(input, builder, read, progress);
+  StoreBuildResult& r = builder.result();
+  const StoreHeader h = header_of(r, uint32_t(r.attributes.size()));
+  // Arrays the build may not have produced (no attributes, no vertices at all) are empty files.
+  for (const ArrayFile& f : array_files(h)) out.array(f.name);
+  out.array("chunks.bin").append(std::span<const Chunk>(r.chunks));
+  out.array("chunk_neighbours.u32").append(std::span<const uint32_t>(r.chunk_neighbours));
+  const std::string text = attributes_text(r.attributes);
+  out.array(kAttributesFile).append(text.data(), text.size());
+  out.writer().finish(kHeaderFile, std::as_bytes(std::span(&h, 1)));
+  if (report) *report = r.report;
+  return open(directory);
 }
 
 void MeshStore::write(const std::string& directory) const {
   StoreDirectoryWriter writer(directory, /*background=*/false);
   const std::vector<ArrayFile> files = array_files(impl_->header);
-  const std::vector<std::span<const std::byte>> arrays = impl_->array_bytes();
-  for (size_t i = 0; i < files.size(); ++i) writer.add(files[i].name, arrays[i]);
+  for (size_t i = 0; i < files.size(); ++i) writer.add(files[i].name, impl_->bytes[i]);
+  const std::string text = attributes_text(impl_->attributes);
+  writer.add(kAttributesFile, std::as_bytes(std::span(text.data(), text.size())));
   writer.finish(kHeaderFile, std::as_bytes(std::span(&impl_->header, 1)));
 }
 
 MeshStore MeshStore::open(const std::string& directory) {
   MeshStore store;
   Impl& s = *store.impl_;
+  s.directory = directory;
+  s.bytes.clear();
   auto fail = [&](const std::string& file, const std::string& problem) { fail_open(directory, file, problem); };
-  // Header.
+  auto open_file = [&](const std::string& name, struct stat& st) {
+    const std::string path = directory + "/" + name;
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);  // a FIFO must not block
+    if (fd < 0) fail(name, std::string("cannot open: ") + std::strerror(errno));
+    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+      ::close(fd);
+      fail(name, "not a regular file");
+    }
+    return fd;
+  };
   {
-    const std::string path = directory + "/" + kHeaderFile;
-    int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);  // a FIFO must not block
-    if (fd < 0) fail(kHeaderFile, std::string("cannot open: ") + std::strerror(errno));
     struct stat st {};
-    ssize_t got = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size == sizeof(StoreHeader)
-                      ? ::read(fd, &s.header, sizeof(StoreHeader))
-                      : -1;
+    const int fd = open_file(kHeaderFile, st);
+    const ssize_t got = st.st_size == sizeof(StoreHeader) ? ::read(fd, &s.header, sizeof(StoreHeader)) : -1;
     ::close(fd);
     if (got != ssize_t(sizeof(StoreHeader)))
-      fail(kHeaderFile,
-           "size " + std::to_string(st.st_size) + " bytes, expected " + std::to_string(sizeof(StoreHeader)));
+      fail(kHeaderFile, "size " + std::to_string(st.st_size) + " bytes, expected " + std::to_string(sizeof(StoreHeader)));
   }
   const StoreHeader& h = s.header;
-  if (std::memcmp(h.magic, StoreHeader{}.magic, sizeof h.magic) != 0)
-    fail(kHeaderFile, "bad magic (not a streamcvd store)");
+  if (std::memcmp(h.magic, StoreHeader{}.magic, sizeof h.magic) != 0) fail(kHeaderFile, "bad magic (not a streamcvd store)");
   if (h.version != kStoreVersion)
-    fail(kHeaderFile,
-         "unsupported version " + std::to_string(h.version) + " (expected " + std::to_string(kStoreVersion) + ")");
+    fail(kHeaderFile, "unsupported version " + std::to_string(h.version) + " (expected " + std::to_string(kStoreVersion) +
+                          "; ingest the mesh again)");
   if (h.vertex_count > std::numeric_limits<uint32_t>::max() || h.face_count > std::numeric_limits<uint32_t>::max())
     fail(kHeaderFile, "vertex or face count over 2^32-1");
   if (h.vertex_face_count != 3 * h.face_count) fail(kHeaderFile, "vertex-face count is not 3 x face count");
   if ((h.chunk_count == 0) != (h.vertex_count == 0) || h.chunk_count > h.vertex_count)
-    fail(kHeaderFile, "chunk count " + std::to_string(h.chunk_count) + " impossible for " +
+    fail(kHeaderFile, "chunk count " + std::to_string(h.chunk_count) + " impossible for " + std::to_string(h.vertex_count) +
+                          " vertices");
+  if (h.attribute_count > 4096) fail(kHeaderFile, "attribute count " + std::to_string(h.attribute_count) + " too large");
+  if (h.input_vertex_count < h.vertex_count || h.input_vertex_count > std::numeric_limits<uint32_t>::max())
+    fail(kHeaderFile, "input vertex count " + std::to_string(h.input_vertex_count) + " impossible for " +
                           std::to_string(h.vertex_count) + " vertices");
-
   // Arrays: sizes must match the header exactly, then map them.
   const std::vector<ArrayFile> files = array_files(h);
-  std::vector<std::span<const std::byte>> arrays;
-  for (const ArrayFile& file : files) {
-    const std::string path = directory + "/" + file.name;
-    int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
-    if (fd < 0) fail(file.name, std::string("cannot open: ") + std::strerror(errno));
+  s.mappings.resize(kArrayCount);
+  for (int i = 0; i < kArrayCount; ++i) {
+    const ArrayFile& file = files[i];
     struct stat st {};
-    const bool stat_ok = ::fstat(fd, &st) == 0;
-    if (!stat_ok || !S_ISREG(st.st_mode)) {
-      const int e = errno;
-      ::close(fd);
-      fail(file.name, stat_ok ? std::string("not a regular file") : std::string("cannot stat: ") + std::strerror(e));
-    }
+    const int fd = open_file(file.name, st);
     const uint64_t size = uint64_t(st.st_size);
     if (file.count > size / file.element || size != file.count * file.element) {
       ::close(fd);
-      fail(file.name, "size " + std::to_string(size) + " bytes, expected " + std::to_string(file.count) +
-                          " entries of " + std::to_string(file.element) + " bytes");
+      fail(file.name, "size " + std::to_string(size) + " bytes, expected " + std::to_string(file.count) + " entries of " +
+                          std::to_string(file.element) + " bytes");
     }
     void* address = nullptr;
     if (size > 0) {
@@ -290,61 +429,135 @@ MeshStore MeshStore::open(const std::string& directory) {
         ::close(fd);
         fail(file.name, std::string("cannot map: ") + std::strerror(errno));
       }
-      s.mappings.push_back({address, size});
+      s.mappings[i] = {address, size};
     }
     ::close(fd);
-    arrays.push_back({static_cast<const std::byte*>(address), size});
+    s.bytes.emplace_back(static_cast<const std::byte*>(address), size);
   }
-  MeshView& m = s.view;
-  m.positions = array_of<float>(arrays[0]);
-  m.triangles = array_of<uint32_t>(arrays[1]);
-  m.vertex_vertex_offsets = array_of<uint64_t>(arrays[2]);
-  m.vertex_vertex = array_of<uint32_t>(arrays[3]);
-  m.vertex_face_offsets = array_of<uint64_t>(arrays[4]);
-  m.vertex_face = array_of<uint32_t>(arrays[5]);
-  m.vertex_flags = array_of<uint8_t>(arrays[6]);
-  m.chunks = array_of<Chunk>(arrays[7]);
-  s.original_view = array_of<uint32_t>(arrays[8]);
-
-  // Contents that would make an algorithm read out of bounds: offsets, indices, chunk ranges.
-  // One parallel pass over the index arrays (O(V + F)); values only, so it stays cheap.
-  const uint64_t v_count = h.vertex_count, f_count = h.face_count;
-  auto check_offsets = [&](std::span<const uint64_t> off, uint64_t total, const char* name) {
-    if (off[0] != 0) fail(name, "offset 0 is " + std::to_string(off[0]) + ", expected 0");
-    uint64_t bad = first_violation(v_count, [&](uint64_t i) { return off[i] > off[i + 1]; });
-    if (bad < v_count) fail(name, "offsets decrease at entry " + std::to_string(bad + 1));
-    if (off[v_count] != total)
-      fail(name,
-           "last offset " + std::to_string(off[v_count]) + " does not match " + std::to_string(total) + " entries");
-  };
-  check_offsets(m.vertex_vertex_offsets, h.vertex_vertex_count, files[2].name);
-  check_offsets(m.vertex_face_offsets, h.vertex_face_count, files[4].name);
-  auto check_indices = [&](std::span<const uint32_t> a, uint64_t limit, const char* name, const char* what) {
-    uint64_t bad = first_violation(a.size(), [&](uint64_t i) { return a[i] >= limit; });
-    if (bad < a.size())
-      fail(name, "entry " + std::to_string(bad) + " is " + what + " " + std::to_string(a[bad]) + " of " +
-                     std::to_string(limit));
-  };
-  check_indices(m.triangles, v_count, files[1].name, "vertex");
-  check_indices(m.vertex_vertex, v_count, files[3].name, "vertex");
-  check_indices(m.vertex_face, f_count, files[5].name, "face");
-  check_indices(s.original_view, v_count, files[8].name, "vertex");  // a permutation of [0, V) when built here
+  s.ram.clear();
+  {
+    struct stat st {};
+    ::close(open_file(kAttributesFile, st));
+    std::ifstream in(directory + "/" + kAttributesFile);
+    std::string name, type;
+    while (in >> name >> type) {
+      VertexAttribute a{name, ScalarType::F32};
+      bool known = false;
+      for (const auto& [t, n] : kTypeNames)
+        if (type == n) a.type = t, known = true;
+      if (!known) fail(kAttributesFile, "unknown attribute type '" + type + "'");
+      s.attributes.push_back(a);
+    }
+    if (s.attributes.size() != h.attribute_count)
+      fail(kAttributesFile, std::to_string(s.attributes.size()) + " attributes listed, the header says " +
+                                std::to_string(h.attribute_count));
+  }
+  s.make_views();
+  // The small tables are checked now: chunks tile [0, V) and [0, F), neighbours are chunk ids.
+  const MeshView& m = s.view;
   uint64_t v_next = 0, f_next = 0;
   for (size_t i = 0; i < m.chunks.size(); ++i) {
     const Chunk& c = m.chunks[i];
-    if (c.vertex_begin != v_next || c.vertex_end <= c.vertex_begin || c.face_begin != f_next ||
-        c.face_end < c.face_begin)
-      fail(files[7].name, "chunk " + std::to_string(i) + " does not continue the previous one");
+    if (c.vertex_begin != v_next || c.vertex_end <= c.vertex_begin || c.face_begin != f_next || c.face_end < c.face_begin)
+      fail(files[kChunks].name, "chunk " + std::to_string(i) + " does not continue the previous one");
+    if (uint64_t(c.neighbour_begin) + c.neighbour_count > h.chunk_neighbour_count)
+      fail(files[kChunks].name, "chunk " + std::to_string(i) + " has neighbours past the table");
     v_next = c.vertex_end;
     f_next = c.face_end;
   }
-  if (v_next != v_count || f_next != f_count) fail(files[7].name, "chunks do not cover all vertices and faces");
+  if (v_next != h.vertex_count || f_next != h.face_count)
+    fail(files[kChunks].name, "chunks do not cover all vertices and faces");
+  for (size_t i = 0; i < m.chunk_neighbours.size(); ++i)
+    if (m.chunk_neighbours[i] >= h.chunk_count)
+      fail(files[kNeighbours].name, "entry " + std::to_string(i) + " is chunk " + std::to_string(m.chunk_neighbours[i]) +
+                                        " of " + std::to_string(h.chunk_count));
+  auto check_ends = [&](std::span<const uint64_t> off, uint64_t total, const char* name) {
+    if (off[0] != 0) fail(name, "offset 0 is " + std::to_string(off[0]) + ", expected 0");
+    if (off[h.vertex_count] != total)
+      fail(name, "last offset " + std::to_string(off[h.vertex_count]) + " does not match " + std::to_string(total) +
+                     " entries");
+  };
+  check_ends(m.vertex_vertex_offsets, h.vertex_vertex_count, files[kVvOffsets].name);
+  check_ends(m.vertex_face_offsets, h.vertex_face_count, files[kVfOffsets].name);
   return store;
+}
+
+void MeshStore::validate_chunk(uint32_t c) const {
+  const Impl& s = *impl_;
+  if (s.validated[c].load(std::memory_order_acquire)) return;
+  const MeshView& m = s.view;
+  const Chunk& ch = m.chunks[c];
+  const std::vector<ArrayFile> files = array_files(s.header);
+  auto fail = [&](int file, const std::string& problem) { fail_open(s.directory, files[file].name, problem); };
+  const uint64_t V = s.header.vertex_count, F = s.header.face_count;
+  auto check_csr = [&](int off_file, std::span<const uint64_t> off, std::span<const uint32_t> entries, uint64_t limit,
+                       int entry_file, const char* what) {
+    for (uint64_t v = ch.vertex_begin; v < ch.vertex_end; ++v)
+      if (off[v] > off[v + 1] || off[v + 1] > entries.size())
+        fail(off_file, "offsets decrease or overflow at entry " + std::to_string(v + 1));
+    for (uint64_t i = off[ch.vertex_begin]; i < off[ch.vertex_end]; ++i)
+      if (entries[i] >= limit)
+        fail(entry_file, "entry " + std::to_string(i) + " is " + what + " " + std::to_string(entries[i]) + " of " +
+                             std::to_string(limit));
+  };
+  check_csr(kVvOffsets, m.vertex_vertex_offsets, m.vertex_vertex, V, kVv, "vertex");
+  check_csr(kVfOffsets, m.vertex_face_offsets, m.vertex_face, F, kVf, "face");
+  for (uint64_t i = 3 * ch.face_begin; i < 3 * ch.face_end; ++i)
+    if (m.triangles[i] >= V)
+      fail(kTriangles, "entry " + std::to_string(i) + " is vertex " + std::to_string(m.triangles[i]) + " of " +
+                           std::to_string(V));
+  for (uint64_t v = ch.vertex_begin; v < ch.vertex_end; ++v)
+    if (s.original_view[v] >= s.header.input_vertex_count)
+      fail(kOriginal, "entry " + std::to_string(v) + " is vertex " + std::to_string(s.original_view[v]) + " of " +
+                          std::to_string(s.header.input_vertex_count));
+  s.validated[c].store(1, std::memory_order_release);
+}
+
+void MeshStore::validate_all() const {
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, impl_->header.chunk_count, 1),
+                    [&](const tbb::blocked_range<uint32_t>& r) {
+                      for (uint32_t c = r.begin(); c != r.end(); ++c) validate_chunk(c);
+                    });
+}
+
+void MeshStore::advise(uint32_t chunk, Advice advice) const {
+  const Impl& s = *impl_;
+  if (s.mappings.empty()) return;
+  const int how = advice == Advice::WillNeed ? MADV_WILLNEED
+                  : advice == Advice::DontNeed ? MADV_DONTNEED
+                  : advice == Advice::Sequential ? MADV_SEQUENTIAL
+                                                 : MADV_RANDOM;
+  const uintptr_t page = uintptr_t(::sysconf(_SC_PAGESIZE));
+  auto advise_bytes = [&](int file, uint64_t begin, uint64_t end) {
+    const Impl::Mapping& mp = s.mappings[file];
+    if (!mp.address || begin >= end) return;
+    const uintptr_t base = uintptr_t(mp.address);
+    const uintptr_t lo = (base + begin) & ~(page - 1), hi = std::min<uintptr_t>(base + end, base + mp.length);
+    if (hi > lo) ::madvise(reinterpret_cast<void*>(lo), hi - lo, how);
+  };
+  if (chunk == kAllChunks) {
+    for (int f = 0; f < kArrayCount; ++f) advise_bytes(f, 0, s.mappings[f].length);
+    return;
+  }
+  const Chunk& c = s.view.chunks[chunk];
+  const MeshView& m = s.view;
+  const uint64_t vb = c.vertex_begin, ve = c.vertex_end;
+  advise_bytes(kPositions, 12 * vb, 12 * ve);
+  advise_bytes(kTriangles, 12 * c.face_begin, 12 * c.face_end);
+  advise_bytes(kVvOffsets, 8 * vb, 8 * (ve + 1));
+  advise_bytes(kVv, 4 * m.vertex_vertex_offsets[vb], 4 * m.vertex_vertex_offsets[ve]);
+  advise_bytes(kVfOffsets, 8 * vb, 8 * (ve + 1));
+  advise_bytes(kVf, 4 * m.vertex_face_offsets[vb], 4 * m.vertex_face_offsets[ve]);
+  advise_bytes(kFlags, vb, ve);
+  advise_bytes(kOriginal, 4 * vb, 4 * ve);
+  advise_bytes(kAttributes, 4 * s.header.attribute_count * vb, 4 * s.header.attribute_count * ve);
 }
 
 MeshView MeshStore::view() const { return impl_->view; }
 const StoreHeader& MeshStore::header() const { return impl_->header; }
 std::span<const uint32_t> MeshStore::original_vertex_ids() const { return impl_->original_view; }
+std::span<const float> MeshStore::vertex_attributes() const { return impl_->attribute_view; }
+const std::vector<VertexAttribute>& MeshStore::attributes() const { return impl_->attributes; }
 
 uint64_t MeshStore::size_bytes() const {
   uint64_t total = sizeof(StoreHeader);
@@ -355,7 +568,7 @@ uint64_t MeshStore::size_bytes() const {
 bool is_store_directory(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::is_directory(path, ec)) return false;
-  int fd = ::open((path + "/" + kHeaderFile).c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  const int fd = ::open((path + "/" + kHeaderFile).c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) return false;
   char magic[sizeof StoreHeader{}.magic];
   const bool ok = ::read(fd, magic, sizeof magic) == ssize_t(sizeof magic) &&
@@ -365,8 +578,12 @@ bool is_store_directory(const std::string& path) {
 }
 
 MeshStore load_mesh_or_store(const std::string& path, const StoreBuildOptions& options) {
-  if (is_store_directory(path)) return MeshStore::open(path);
-  return MeshStore::build(read_mesh(path).view(), options);
+  if (is_store_directory(path)) {
+    MeshStore store = MeshStore::open(path);
+    store.validate_all();
+    return store;
+  }
+  return MeshStore::build_from_file(path, options);
 }
 
 }  // namespace streamcvd

@@ -1,81 +1,121 @@
-// Passes of the in-RAM store build (MeshStore::build, streaming/store.h), one function each.
-// Internal to the store: store.cpp runs them in order and hands each finished array to the writer.
-// All are TBB-parallel and deterministic (the output never depends on the number of threads).
+// The store builder (DESIGN.md §2): one external-memory builder for every input size. It is a
+// MeshSink, so a reader streams blocks straight into it; memory is set by `memory_limit`, not by
+// the input. Passes, one function each:
+//   1. spill    vertices (and attributes) in file order, bounding box, a bounded key sample;
+//               faces spilled raw unless the vertex order is already known
+//   2. order    Hilbert key of every vertex, records bucketed by key range (ranges from the
+//               sample), each bucket sorted in RAM by (key, input id) → positions, attributes,
+//               original ids in store order, and the vertex map old → new
+//   3. faces    corners remapped, each face bucketed by the vertex range of its owner (smallest
+//               corner), in file order
+//   4. ranges   per owner range, in order: faces counting-sorted by owner (stable), face ids;
+//               faces with corners in later ranges sent there as "foreign" records; vertex→face
+//               and vertex→vertex CSR and flags from the owned plus foreign faces (exact across
+//               range and chunk frontiers); chunks cut as the owned counts stream by, with their
+//               bounding box, halo and neighbour chunks
+// With enough memory every bucket stays resident and nothing is spilled: the in-RAM build is
+// this builder with resident buckets. The bytes of the store depend on neither the memory limit
+// nor the number of threads.
 #pragma once
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
-
-#include <algorithm>
-#include <cmath>
 #include <cstdint>
-#include <limits>
-#include <span>
+#include <functional>
+#include <memory>
+#include <string>
 #include <vector>
 
-#include "core/default_init_vector.h"
 #include "core/mesh_view.h"
+#include "streaming/mesh_reader.h"
 
-namespace streamcvd::store_build {
+namespace streamcvd {
 
-/// Axis-aligned box of the finite coordinates added to it.
-struct Bbox {
-  float lo[3] = {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity(),
-                 std::numeric_limits<float>::infinity()};
-  float hi[3] = {-std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
-                 -std::numeric_limits<float>::infinity()};
-  void add(const float* p) {
-    for (int k = 0; k < 3; ++k)
-      if (std::isfinite(p[k])) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
-  }
-  void add(const Bbox& b) {
-    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], b.lo[k]), hi[k] = std::max(hi[k], b.hi[k]);
-  }
-  // An empty box (no finite coordinate on an axis) becomes [0, 0] on that axis.
-  void finish() {
-    for (int k = 0; k < 3; ++k)
-      if (!(lo[k] <= hi[k])) lo[k] = hi[k] = 0;
-  }
+class ArrayOutput;
+
+struct StoreBuildOptions {
+  uint64_t faces_per_chunk = uint64_t(1) << 20;  ///< target owned faces per chunk (~1M)
+  bool hilbert_order = true;                     ///< false keeps input order (for tests)
+  /// Bytes the build may keep resident (its buffers and buckets), 0 = unlimited. Decides bucket
+  /// sizes and what spills to disk, never the result. Below the minimum (32 MiB + 4 bytes per
+  /// input vertex) the build refuses to start with an InputError naming the minimum.
+  uint64_t memory_limit = 0;
+  /// Folder of the scratch files (anonymous files, nothing is left behind); "" = the store's
+  /// folder, or TMPDIR (else /tmp) for a store built in RAM.
+  std::string work_directory;
+  /// Vertex range of one pass-4 unit when memory is unlimited (bounds the working set).
+  uint32_t max_range_vertices = 1u << 22;
 };
 
-/// Bounding box of the finite coordinates of vertices [begin, end). Parallel, O(end - begin).
-Bbox bounding_box(std::span<const float> positions, size_t begin, size_t end);
+/// Progress of a build: `stage` is "read", "order", "faces", "adjacency"; `done` / `total` in
+/// the stage's own unit (bytes read, vertices, faces, vertex ranges). Called from the building
+/// thread, between blocks.
+struct BuildProgress {
+  const char* stage = "";
+  uint64_t done = 0, total = 0;
+};
 
-// Smallest i in [0, n) with bad(i), or n. Parallel and deterministic.
-template <typename Pred>
-uint64_t first_violation(uint64_t n, Pred bad) {
-  return tbb::parallel_reduce(
-      tbb::blocked_range<uint64_t>(0, n, 1 << 16), n,
-      [&](const tbb::blocked_range<uint64_t>& r, uint64_t found) {
-        for (uint64_t i = r.begin(); i != r.end() && i < found; ++i)
-          if (bad(i)) return i;
-        return found;
-      },
-      [](uint64_t a, uint64_t b) { return std::min(a, b); });
-}
+/// What a build did: the figures `ingest --json` reports.
+struct StoreBuildReport {
+  uint64_t input_bytes = 0;      ///< (decompressed) bytes the reader consumed
+  uint64_t input_vertices = 0;   ///< vertex records read (STL: corners)
+  uint64_t vertices = 0, faces = 0, chunks = 0;
+  uint64_t polygons_split = 0, strip_triangles_dropped = 0;
+  uint32_t key_buckets = 0, vertex_ranges = 0;  ///< buckets of pass 2, ranges of pass 4
+  uint64_t memory_limit = 0;                    ///< the limit planned with (0 = unlimited)
+  uint64_t spilled_bytes = 0;                   ///< bytes written to scratch files
+  double read_seconds = 0, order_seconds = 0, faces_seconds = 0, adjacency_seconds = 0;
+};
 
-/// Throws InputError unless positions and triangles are multiples of 3, V and F < 2^32 and every
-/// index < V. Parallel O(F).
-void check_soup(const TriangleSoupView& soup);
+/// Where a build puts each array of the store, front to back (StoreDirectoryWriter streams for
+/// a store on disk, RAM buffers for a store in memory). Arrays are named as in streaming/store.h.
+class StoreOutputs {
+ public:
+  virtual ~StoreOutputs() = default;
+  virtual ArrayOutput& array(const char* name) = 0;
+  /// Announces the final size of an array (a RAM output allocates it once instead of growing).
+  virtual void expect(const char* name, uint64_t bytes) { (void)name, (void)bytes; }
+  /// Announces the store's size before the first array is created (V, and F or an estimate),
+  /// so an output can choose between RAM and files.
+  virtual void plan(uint64_t vertices, uint64_t faces) { (void)vertices, (void)faces; }
+  /// Copies n bytes at `offset` of an array already appended (positions are read back by pass 4).
+  virtual void read_back(const char* name, uint64_t offset, void* dst, size_t n) = 0;
+};
 
-/// Input vertex id of each store vertex (order.size() = V): sorted by (Hilbert key in the grid of
-/// `box`, input id). O(V) counting sort + small per-cell sorts; parallel.
-void hilbert_order(std::span<const float> positions, const Bbox& box, std::span<uint32_t> order);
+/// The store header, chunk table and neighbour table a build ends with (small, written last).
+struct StoreBuildResult {
+  uint64_t vertex_count = 0, face_count = 0, vertex_vertex_count = 0;
+  float bbox_min[3] = {0, 0, 0}, bbox_max[3] = {0, 0, 0};
+  std::vector<Chunk> chunks;
+  std::vector<uint32_t> chunk_neighbours;  ///< CSR entries (ranges in Chunk::neighbour_*)
+  std::vector<VertexAttribute> attributes;
+  StoreBuildReport report;
+};
 
-/// Input faces `in` remapped by new_of_old into `out` (3F), stably counting-sorted by owner
-/// (smallest new vertex id), corner order kept; owned gets V+1 entries (faces of owner v are
-/// [owned[v], owned[v+1])). A non-empty `in_place` must view the same memory as `in`, which is
-/// then remapped in place first (one lookup per corner instead of two). O(F + V); parallel.
-void sort_faces_by_owner(std::span<const uint32_t> in, std::span<uint32_t> in_place,
-                         std::span<const uint32_t> new_of_old, DefaultInitVector<uint32_t>& owned,
-                         DefaultInitVector<uint32_t>& out);
+/// Builds a store from the blocks a reader hands it. Not thread-safe (one reading thread); its
+/// passes are TBB-parallel. Throws InputError for inputs no store can hold (indices ≥ V, more
+/// than 2^32−1 vertices or faces, a memory limit below the minimum) and OutputError when a
+/// scratch or store file cannot be written.
+class StoreBuilder final : public MeshSink {
+ public:
+  StoreBuilder(StoreOutputs& outputs, const StoreBuildOptions& options,
+               std::function<void(const BuildProgress&)> progress = {});
+  ~StoreBuilder() override;
 
-/// Chunk vertex and face ranges: round(F / target) chunks of ~target owned faces, cut between
-/// vertices (owned as above). O(C log V).
-std::vector<Chunk> cut_chunks(std::span<const uint32_t> owned, uint64_t target);
+  void begin(const MeshHeaderInfo& header) override;
+  void vertices(std::span<const float> xyz, std::span<const float> attributes) override;
+  void triangles(std::span<const uint32_t> corners) override;
+  /// Runs the passes that need the whole input (order if not done yet, faces, ranges).
+  void end(const ReadStats& stats) override;
 
-/// Bounding box and halo1/halo3 face counts of every chunk of `m` (its chunks' ranges set).
-/// Parallel over chunks, O(V + F + halo sizes).
-void chunk_extras(const MeshView& m, std::span<Chunk> chunks);
+  /// The result, once end() has returned.
+  StoreBuildResult& result();
 
-}  // namespace streamcvd::store_build
+  struct State;  // the passes' shared state (streaming/store_build_*.cpp)
+
+ private:
+  std::unique_ptr<State> state_;
+};
+
+/// Feeds an in-RAM soup to `sink` in blocks, as a reader would (for MeshStore::build).
+void stream_soup(const TriangleSoupView& soup, MeshSink& sink, uint32_t block = 1u << 16);
+
+}  // namespace streamcvd

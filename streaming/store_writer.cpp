@@ -3,12 +3,14 @@
 #include <tbb/parallel_for.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
 
 #include "core/errors.h"
 #include "streaming/output_file.h"
+#include "streaming/spill.h"
 
 namespace streamcvd {
 
@@ -82,6 +84,11 @@ void StoreDirectoryWriter::add(const std::string& name, std::span<const std::byt
   ready_.notify_one();
 }
 
+StoreArrayStream& StoreDirectoryWriter::stream(const std::string& name) {
+  streams_.push_back(std::make_unique<StoreArrayStream>(directory_ + "/" + name));
+  return *streams_.back();
+}
+
 void StoreDirectoryWriter::finish(const std::string& name, std::span<const std::byte> header) {
   if (background_) {
     {
@@ -95,11 +102,116 @@ void StoreDirectoryWriter::finish(const std::string& name, std::span<const std::
     // Two files at a time (one per core): the bounce copies overlap the other file's I/O.
     tbb::parallel_for(size_t(0), pending_.size(), [&](size_t i) { run(pending_[i]); });
   }
+  for (auto& s : streams_) s->finish();
   for (auto& out : done_) out->commit(/*sync_folder=*/false);  // step 3
+  for (auto& s : streams_) s->file().commit(/*sync_folder=*/false);
   sync_directory(directory_);
   AtomicOutputFile out(directory_ + "/" + name);  // step 4
   out.write(header.data(), header.size());
   out.commit();
+}
+
+}  // namespace streamcvd
+
+namespace streamcvd {
+
+void MemoryArrayOutput::append(const void* data, size_t n) {
+  const std::byte* p = static_cast<const std::byte*>(data);
+  data_.insert(data_.end(), p, p + n);
+}
+
+namespace {
+constexpr size_t kStreamBlock = size_t(1) << 20;  // large enough for full-speed direct I/O
+constexpr size_t kStreamBlocksInFlight = 2;
+}  // namespace
+
+StoreArrayStream::StoreArrayStream(const std::string& path, bool scratch)
+    : file_(std::make_unique<AtomicOutputFile>(path)), pool_(std::make_unique<BlockPool>(kStreamBlock)), scratch_(scratch) {
+  thread_ = std::thread([this] { run(); });
+}
+
+StoreArrayStream::~StoreArrayStream() {
+  {
+    std::lock_guard lock(mutex_);
+    closing_ = true;
+  }
+  changed_.notify_all();
+  if (thread_.joinable()) thread_.join();
+  if (pool_) {
+    for (auto& [block, n] : queue_) pool_->put(block);
+    if (block_) pool_->put(block_);
+  }
+}
+
+void StoreArrayStream::run() {
+  for (;;) {
+    std::pair<std::byte*, size_t> job;
+    {
+      std::unique_lock lock(mutex_);
+      changed_.wait(lock, [&] { return closing_ || !queue_.empty(); });
+      if (queue_.empty()) return;
+      job = queue_.front();
+    }
+    try {
+      if (!error_) file_->write_direct(job.first, job.second);
+    } catch (...) {
+      std::lock_guard lock(mutex_);
+      error_ = std::current_exception();
+    }
+    pool_->put(job.first);
+    {
+      std::lock_guard lock(mutex_);
+      queue_.pop_front();
+    }
+    changed_.notify_all();
+  }
+}
+
+void StoreArrayStream::submit() {
+  std::unique_lock lock(mutex_);
+  if (error_) std::rethrow_exception(error_);
+  queue_.emplace_back(block_, used_);
+  block_ = nullptr;
+  used_ = 0;
+  changed_.notify_all();
+  changed_.wait(lock, [&] { return queue_.size() < kStreamBlocksInFlight || error_; });
+  if (error_) std::rethrow_exception(error_);
+}
+
+void StoreArrayStream::append(const void* data, size_t n) {
+  const std::byte* p = static_cast<const std::byte*>(data);
+  bytes_ += n;
+  while (n > 0) {
+    if (!block_) block_ = pool_->get();
+    const size_t take = std::min(n, kStreamBlock - used_);
+    std::memcpy(block_ + used_, p, take);
+    used_ += take;
+    p += take;
+    n -= take;
+    if (used_ == kStreamBlock) submit();
+  }
+}
+
+void StoreArrayStream::read_back(uint64_t offset, void* dst, size_t n) {
+  finish();
+  file_->read_back(offset, dst, n);
+}
+
+void StoreArrayStream::finish() {
+  if (finished_) return;
+  finished_ = true;
+  if (block_ && used_ > 0) submit();  // the tail: write_direct pads and truncates it
+  {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return queue_.empty(); });
+    closing_ = true;
+  }
+  changed_.notify_all();
+  thread_.join();
+  if (error_) std::rethrow_exception(error_);
+  pool_.reset();  // the stream is complete: its blocks go back to the system
+  if (scratch_) file_->flush();  // mapped next: every byte must be in the file, durable or not
+  else file_->sync();
 }
 
 }  // namespace streamcvd

@@ -20,15 +20,15 @@ struct Adjacency {
   std::vector<uint8_t> flags;
 
   Adjacency(const std::vector<uint32_t>& tri, uint32_t v_count) {
-    build_vertex_face_adjacency(tri, v_count, vf_off, vf);
-    build_vertex_vertex_adjacency(tri, vf_off, vf, vv_off, vv);
+    build_vertex_face_adjacency(std::span<const uint32_t>(tri), 0, v_count, vf_off, vf);
+    build_vertex_vertex_adjacency(std::span<const uint32_t>(tri), 0, std::span<const uint64_t>(vf_off), std::span<const uint32_t>(vf), vv_off, vv);
     flags.resize(v_count);
     compute_vertex_flags(tri, vf_off, vf, flags);
     // The fused pass gives the same neighbours and flags.
     std::vector<uint64_t> fused_off;
     std::vector<uint32_t> fused_vv;
     std::vector<uint8_t> fused_flags(v_count, 0xff);
-    build_vertex_vertex_adjacency(tri, vf_off, vf, fused_off, fused_vv, fused_flags);
+    build_vertex_vertex_adjacency(std::span<const uint32_t>(tri), 0, std::span<const uint64_t>(vf_off), std::span<const uint32_t>(vf), fused_off, fused_vv, std::span<uint8_t>(fused_flags));
     EXPECT_EQ(fused_off, vv_off);
     EXPECT_EQ(fused_vv, vv);
     EXPECT_EQ(fused_flags, flags);

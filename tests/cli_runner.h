@@ -45,6 +45,8 @@ struct CliLimits {
   uint64_t address_space_mb = 0;
   uint64_t file_size_bytes = 0;  ///< RLIMIT_FSIZE (0 = none): writes past it fail with EFBIG
   double watchdog_seconds = 120; ///< SIGKILL after this long (a hang, not a timing test)
+  std::string stdin_path;        ///< file fed to stdin ("" = stdin closed)
+  bool stdin_pipe = false;       ///< feed stdin_path through a pipe (as `cat f | streamcvd ...`)
 };
 
 struct CliResult {
@@ -82,10 +84,19 @@ CliResult run_cli(const std::vector<std::string>& args, const CliLimits& limits,
   if (const char* old = std::getenv("ASAN_OPTIONS")) asan += std::string(old) + ":";
   asan += "max_allocation_size_mb=" + std::to_string(limits.address_space_mb ? limits.address_space_mb : 1 << 20);
 
+  int pipe_fds[2] = {-1, -1};
+  if (limits.stdin_pipe && ::pipe2(pipe_fds, O_CLOEXEC) != 0) pipe_fds[0] = pipe_fds[1] = -1;
   std::fflush(nullptr);
   const pid_t pid = ::fork();
   if (pid == 0) {
-    ::close(0);  // no stdin at all: nothing may wait for input
+    ::close(0);  // no stdin at all unless asked: nothing may wait for input
+    if (pipe_fds[0] >= 0) {
+      ::dup2(pipe_fds[0], 0);
+    } else if (!limits.stdin_path.empty()) {
+      const int in = ::open(limits.stdin_path.c_str(), O_RDONLY);
+      if (in < 0) ::_exit(121);
+      if (in != 0) ::dup2(in, 0), ::close(in);
+    }
     int o = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     int e = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (o < 0 || e < 0) ::_exit(120);
@@ -105,6 +116,28 @@ CliResult run_cli(const std::vector<std::string>& args, const CliLimits& limits,
     ::execv(argv[0], argv.data());
     ::_exit(127);
   }
+  std::thread feeder;
+  if (pipe_fds[0] >= 0) {
+    ::close(pipe_fds[0]);
+    ::signal(SIGPIPE, SIG_IGN);  // a reader that stops early gives EPIPE, not the test's death
+    feeder = std::thread([fd = pipe_fds[1], path = limits.stdin_path] {
+      std::ifstream in(path, std::ios::binary);
+      std::vector<char> buf(1 << 16);
+      while (in.read(buf.data(), std::streamsize(buf.size())) || in.gcount() > 0) {
+        const char* p = buf.data();
+        size_t n = size_t(in.gcount());
+        while (n > 0) {
+          const ssize_t w = ::write(fd, p, n);
+          if (w <= 0) {  // the reader stopped (exited or failed): stop feeding
+            ::close(fd);
+            return;
+          }
+          p += w, n -= size_t(w);
+        }
+      }
+      ::close(fd);
+    });
+  }
   on_start(pid);
   CliResult r;
   r.pid = pid;
@@ -121,6 +154,7 @@ CliResult run_cli(const std::vector<std::string>& args, const CliLimits& limits,
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
+  if (feeder.joinable()) feeder.join();
   if (WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
   if (WIFSIGNALED(status)) r.signal = WTERMSIG(status);
   r.out = slurp(out_path);

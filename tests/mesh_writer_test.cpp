@@ -121,7 +121,43 @@ void expect_same_mesh(const MeshBuffers& expected, const MeshBuffers& got, const
 
 // ---- AtomicOutputFile ------------------------------------------------------------------------
 
+// Makes new files named temporaries (the path of file systems without O_TMPFILE) in its scope.
+struct NamedTemporaries {
+  NamedTemporaries() { set_anonymous_temp_files(false); }
+  ~NamedTemporaries() { set_anonymous_temp_files(true); }
+};
+
+// The default path: the file being written has no name at all, before commit nothing is in the
+// folder, and a process killed by SIGKILL mid-write leaves nothing behind.
+TEST(AtomicOutputFile, AnonymousFileIsInvisibleUntilCommitAndSurvivesNoKill) {
+  auto dir = test::temp_dir("aof_anonymous");
+  RemoveOnExit cleanup{dir};
+  {
+    AtomicOutputFile out((dir / "out.bin").string());
+    EXPECT_TRUE(out.temp_path().empty());
+    out.write(pattern(6 << 20, 4));
+    EXPECT_TRUE(entries(dir).empty());
+    std::string back(16, '\0');
+    out.read_back(1000, back.data(), back.size());
+    EXPECT_EQ(back, pattern(6 << 20, 4).substr(1000, 16));
+    out.commit();
+  }
+  EXPECT_EQ(entries(dir), std::vector<std::string>{"out.bin"});
+  EXPECT_EQ(slurp(dir / "out.bin"), pattern(6 << 20, 4));
+  { AtomicOutputFile abandoned((dir / "gone.bin").string()); abandoned.write("x"); }
+  EXPECT_EQ(entries(dir), std::vector<std::string>{"out.bin"});
+  int status = in_child([&] {
+    AtomicOutputFile out((dir / "killed.bin").string());
+    out.write(pattern(3 << 20, 5));
+    raise(SIGKILL);
+    return 4;
+  });
+  ASSERT_TRUE(WIFSIGNALED(status));
+  EXPECT_EQ(entries(dir), std::vector<std::string>{"out.bin"});
+}
+
 TEST(AtomicOutputFile, WritesBufferedAndLargeBlocksThenCommits) {
+  NamedTemporaries named;  // the fallback path: a named temporary from the start
   auto dir = test::temp_dir("aof_write");
   RemoveOnExit cleanup{dir};
   std::string small = pattern(1000, 1), big = pattern(9 << 20, 2), tail = pattern(5 << 20, 3);
@@ -207,6 +243,7 @@ TEST(AtomicOutputFile, MisuseIsALogicError) {
 }
 
 TEST(AtomicOutputFile, DestroyWithoutCommitLeavesNothing) {
+  NamedTemporaries named;  // the fallback path: a named temporary from the start
   auto dir = test::temp_dir("aof_abort");
   RemoveOnExit cleanup{dir};
   std::string tmp;
@@ -296,6 +333,7 @@ TEST(AtomicOutputFile, FileSizeLimitIsAnOutputErrorNotSIGXFSZ) {
 }
 
 void expect_signal_removes_temp_file(int sig) {
+  NamedTemporaries named;  // an anonymous file needs no cleanup: the named fallback does
   auto dir = test::temp_dir("aof_signal");
   RemoveOnExit cleanup{dir};
   std::string path = (dir / "out.ply").string();
@@ -317,6 +355,7 @@ TEST(AtomicOutputFile, SigtermRemovesTemporaryFiles) { expect_signal_removes_tem
 TEST(AtomicOutputFile, SigintRemovesTemporaryFiles) { expect_signal_removes_temp_file(SIGINT); }
 
 TEST(AtomicOutputFile, CleanupSparesOtherFilesAndCommittedOutput) {
+  NamedTemporaries named;  // the fallback path: a named temporary from the start
   auto dir = test::temp_dir("aof_spare");
   RemoveOnExit cleanup{dir};
   write_file_atomic((dir / "done.txt").string(), "kept");

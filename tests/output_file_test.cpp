@@ -121,7 +121,7 @@ TEST(AtomicOutputFileDirect, SyncThenCommitAndPatchAfterSync) {
     out.write_direct(a.data(), a.size());
     out.sync();
     EXPECT_FALSE(fs::exists(dir / "s.bin"));  // synced, not yet renamed
-    EXPECT_EQ(temp_files_in(dir), 1u);
+    EXPECT_EQ(temp_files_in(dir), 0u);        // and anonymous until commit (O_TMPFILE)
     out.patch(5, "XY", 2);  // after sync: commit must still write it out
     out.commit(/*sync_folder=*/false);
   }

@@ -16,6 +16,7 @@
 
 #include "core/errors.h"
 #include "core/hilbert.h"
+#include "streaming/mesh_io.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {
@@ -253,25 +254,54 @@ TEST(Store, FlagsOfNonManifoldConfigurations) {
   }
 }
 
+// Brute-force neighbour chunks of chunk c: chunks owning a face that touches c's vertices, and
+// chunks whose vertices touch a face c owns.
+std::vector<uint32_t> brute_neighbours(const MeshView& m, uint32_t c) {
+  auto chunk_of_vertex = [&](uint32_t v) {
+    for (uint32_t i = 0; i < m.chunks.size(); ++i)
+      if (v >= m.chunks[i].vertex_begin && v < m.chunks[i].vertex_end) return i;
+    return UINT32_MAX;
+  };
+  auto chunk_of_face = [&](uint64_t f) {
+    for (uint32_t i = 0; i < m.chunks.size(); ++i)
+      if (f >= m.chunks[i].face_begin && f < m.chunks[i].face_end) return i;
+    return UINT32_MAX;
+  };
+  std::set<uint32_t> out;
+  for (uint64_t f = 0; f < m.face_count(); ++f) {
+    const uint32_t owner = chunk_of_face(f);
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t d = chunk_of_vertex(m.triangles[3 * f + k]);
+      if (owner == c && d != c) out.insert(d);
+      if (d == c && owner != c) out.insert(owner);
+    }
+  }
+  return {out.begin(), out.end()};
+}
+
 TEST(Store, ChunksHoldAboutFacesPerChunkAndCorrectHalos) {
   MeshBuffers torus = shuffled(make_torus(100, 50), 1);  // 10,000 faces
-  MeshStore store = MeshStore::build(torus.view(), {.faces_per_chunk = 100});
-  expect_valid_store(store, torus.view());
-  const MeshView m = store.view();
-  ASSERT_EQ(m.chunks.size(), 100u);
-  uint64_t halo1 = 0, halo3 = 0;
-  for (const Chunk& c : m.chunks) {
-    const uint64_t faces = c.face_end - c.face_begin;
-    EXPECT_GE(faces, 75u);
-    EXPECT_LE(faces, 125u);
-    ASSERT_EQ(c.halo1_faces, brute_halo(m, c, 1));
-    ASSERT_EQ(c.halo3_faces, brute_halo(m, c, 3));
-    EXPECT_GT(c.halo3_faces, c.halo1_faces);
-    halo1 += c.halo1_faces;
-    halo3 += c.halo3_faces;
+  // Small vertex ranges too, so that chunks span ranges and ranges cut chunks.
+  for (uint32_t range : {1u << 22, 4096u}) {
+    MeshStore store = MeshStore::build(torus.view(), {.faces_per_chunk = 100, .max_range_vertices = range});
+    expect_valid_store(store, torus.view());
+    const MeshView m = store.view();
+    ASSERT_EQ(m.chunks.size(), 100u);
+    uint64_t halo = 0;
+    for (uint32_t i = 0; i < m.chunks.size(); ++i) {
+      const Chunk& c = m.chunks[i];
+      const uint64_t faces = c.face_end - c.face_begin;
+      EXPECT_GE(faces, 75u);
+      EXPECT_LE(faces, 125u);
+      ASSERT_EQ(c.halo_faces, brute_halo(m, c, 1));
+      const auto neighbours = m.chunk_neighbours.subspan(c.neighbour_begin, c.neighbour_count);
+      ASSERT_EQ(std::vector<uint32_t>(neighbours.begin(), neighbours.end()), brute_neighbours(m, i)) << "chunk " << i;
+      EXPECT_GT(c.neighbour_count, 0u);
+      halo += c.halo_faces;
+    }
+    // Hilbert chunks are compact: even at 100 faces a chunk's 1-ring halo stays a fraction of it.
+    EXPECT_LT(halo, torus.face_count());
   }
-  // Hilbert chunks are compact: even at 100 faces a chunk's 1-ring halo stays a fraction of it.
-  EXPECT_LT(halo1, torus.face_count());
 }
 
 TEST(Store, HilbertOrderIsLocal) {
@@ -336,35 +366,58 @@ TEST(Store, WriteOpenRoundTripIsByteIdentical) {
   fs::remove_all(dir.parent_path());
 }
 
-TEST(Store, BuildAndWriteEqualsBuildThenWrite) {
-  MeshBuffers mesh = shuffled(make_torus(80, 50), 4);
-  const StoreBuildOptions options{.faces_per_chunk = 900};
+// One builder: a store ingested from a file to disk, under a memory limit that forces key
+// buckets, vertex ranges and spilled blocks, has the bytes of the store built in RAM.
+TEST(Store, IngestToDiskEqualsBuildInRamAtAnyMemoryLimit) {
+  MeshBuffers mesh = shuffled(make_icosphere(8), 4);  // 655,362 vertices, 1,310,720 faces
+  const StoreBuildOptions options{.faces_per_chunk = 20000};
   MeshStore built = MeshStore::build(mesh.view(), options);
-  const fs::path root = test::temp_dir("store_build_and_write");
-  const fs::path dir = root / "store";
-  MeshStore old = MeshStore::build(make_icosphere(1).view());
-  old.write(dir.string());
-  // A bad soup fails before the older store is touched.
-  MeshBuffers bad = make_icosphere(1);
-  bad.triangles[4] = 1000;
-  EXPECT_THROW(MeshStore::build_and_write(std::move(bad), dir.string()), InputError);
-  expect_same_arrays(old, MeshStore::open(dir.string()));
-  MeshBuffers copy = mesh;
-  MeshStore streamed = MeshStore::build_and_write(std::move(copy), dir.string(), options);
-  expect_same_arrays(built, streamed);
-  expect_same_arrays(built, MeshStore::open(dir.string()));
-  uint64_t on_disk = 0, temporaries = 0;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    on_disk += e.file_size();
-    temporaries += e.path().filename().string().find(".tmp.") != std::string::npos;
+  const fs::path root = test::temp_dir("store_ingest");
+  const fs::path ply = root / "mesh.ply";
+  write_mesh(ply.string(), mesh.view());
+  for (uint64_t limit : {uint64_t(0), uint64_t(40) << 20}) {
+    SCOPED_TRACE(limit);
+    const fs::path dir = root / ("store" + std::to_string(limit));
+    StoreBuildOptions o = options;
+    o.memory_limit = limit;
+    StoreBuildReport report;
+    MeshStore ingested = MeshStore::ingest(ply.string(), dir.string(), o, {}, &report);
+    expect_same_arrays(built, ingested);
+    if (limit > 0) {  // the limit did force the external-memory paths
+      EXPECT_GT(report.key_buckets, 1u);
+      EXPECT_GT(report.vertex_ranges, 1u);
+      EXPECT_GT(report.spilled_bytes, 0u);
+    }
+    uint64_t on_disk = 0, temporaries = 0;
+    for (const auto& e : fs::directory_iterator(dir)) {
+      on_disk += e.file_size();
+      temporaries += e.path().filename().string().find(".tmp.") != std::string::npos;
+    }
+    EXPECT_EQ(on_disk, built.size_bytes() + 0);  // attributes.txt is empty
+    EXPECT_EQ(temporaries, 0u);
   }
-  EXPECT_EQ(on_disk, built.size_bytes());
-  EXPECT_EQ(temporaries, 0u);
+  // A temporary store of a file: in RAM without a limit, in anonymous mapped work files under
+  // one (its ~70 MB do not fit half of 40 MiB); the same bytes, and nothing left in the folder.
+  const fs::path work = root / "work";
+  fs::create_directories(work);
+  for (uint64_t limit : {uint64_t(0), uint64_t(40) << 20}) {
+    StoreBuildOptions o = options;
+    o.memory_limit = limit;
+    o.work_directory = work.string();
+    expect_same_arrays(built, MeshStore::build_from_file(ply.string(), o));
+    EXPECT_TRUE(fs::is_empty(work));
+  }
   // An unwritable destination fails with OutputError and leaves no store.
   const fs::path file = root / "plain_file";
   std::ofstream(file) << "x";
-  MeshBuffers again = mesh;
-  EXPECT_THROW(MeshStore::build_and_write(std::move(again), (file / "store").string()), OutputError);
+  EXPECT_THROW(MeshStore::ingest(ply.string(), (file / "store").string()), OutputError);
+  // A limit below the minimum is refused up front, naming the minimum.
+  try {
+    MeshStore::ingest(ply.string(), (root / "tiny").string(), {.memory_limit = uint64_t(8) << 20});
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("at least"), std::string::npos) << e.what();
+  }
   fs::remove_all(root);
 }
 
@@ -424,7 +477,8 @@ void expect_corrupt(const std::string& file, const std::function<void(const fs::
   store.write(dir.string());
   damage(dir / file);
   try {
-    MeshStore::open(dir.string());
+    MeshStore opened = MeshStore::open(dir.string());
+    opened.validate_all();  // the arrays are checked chunk by chunk, on first use
     ADD_FAILURE() << "no error";
   } catch (const InputError& e) {
     const std::string what = e.what();

@@ -9,7 +9,9 @@
 #include "core/shapes.h"
 #include "streaming/mesh_io.h"
 #include "streaming/store.h"
+#include "streaming/memory_budget.h"
 #include "tools/commands.h"
+#include "tools/job_options.h"
 
 namespace streamcvd::cli {
 namespace {
@@ -24,7 +26,7 @@ struct LoadedSoup {
 LoadedSoup load_soup(const std::string& path) {
   LoadedSoup loaded;
   if (is_store_directory(path))
-    loaded.store = MeshStore::open(path);
+    loaded.store = MeshStore::open(path), loaded.store->validate_all();
   else
     loaded.buffers = read_mesh(path);
   return loaded;
@@ -159,51 +161,66 @@ void add_convert_command(CLI::App& app) {
 }
 
 void add_ingest_command(CLI::App& app) {
-  auto* cmd = app.add_subcommand("ingest", "Build the compact store (memory-mappable arrays) of a mesh");
+  auto* cmd = app.add_subcommand(
+      "ingest", "Build the compact store (memory-mappable arrays, Hilbert order, chunks) of a mesh, in bounded memory");
   auto in = std::make_shared<std::string>();
   auto dir = std::make_shared<std::string>();
   auto faces_per_chunk = std::make_shared<uint64_t>(uint64_t(1) << 20);
   auto json = std::make_shared<bool>(false);
-  cmd->add_option("input", *in, "Mesh file")->required();
+  auto job = std::make_shared<JobOptions>();
+  cmd->add_option("input", *in, "Mesh file (PLY/OBJ/OFF/STL, optionally .zst), or - for standard input")->required();
   cmd->add_option("store", *dir, "Store directory to create")->required();
   cmd->add_option("--faces-per-chunk", *faces_per_chunk, "Target owned faces per chunk")->capture_default_str();
   cmd->add_flag("--json", *json, "Print a JSON record of the ingest");
+  add_job_options(cmd, *job);
   cmd->callback([=] {
-    double t0 = now_seconds();
-    MeshBuffers soup = read_mesh(*in);
-    double t_read = now_seconds();
+    const double t0 = now_seconds();
+    auto threads = thread_limit(*job);
     StoreBuildOptions options;
     options.faces_per_chunk = *faces_per_chunk;
-    // Each array is written (direct I/O) as soon as it is final, overlapping the rest of the
-    // build; write_seconds is what remains after the build (syncs, header, renames).
-    MeshStore store = MeshStore::build_and_write(std::move(soup), *dir, options);
-    double t_build = now_seconds();
-    double t_write = t_build;
-    uint64_t in_bytes = std::filesystem::file_size(*in);
+    options.memory_limit = memory_limit(*job);
+    options.work_directory = job->work_dir;
+    ProgressLine progress("ingest", *job);
+    StoreBuildReport report;
+    MeshStore store = MeshStore::ingest(*in, *dir, options, {}, &report,
+                                        [&](const BuildProgress& p) { progress.update(p); });
+    progress.finish();
+    const double total = now_seconds() - t0;
+    const MemoryPeak peak = measure_peak_memory();
+    const uint64_t in_bytes = report.input_bytes;
+    const StoreHeader& h = store.header();
     nlohmann::json j = {{"input", *in},
                         {"store", *dir},
                         {"input_bytes", in_bytes},
-                        {"vertices", store.header().vertex_count},
-                        {"faces", store.header().face_count},
-                        {"chunks", store.header().chunk_count},
+                        {"vertices", h.vertex_count},
+                        {"faces", h.face_count},
+                        {"chunks", h.chunk_count},
                         {"store_bytes", store.size_bytes()},
-                        {"read_seconds", t_read - t0},
-                        {"build_seconds", t_build - t_read},
-                        {"write_seconds", t_write - t_build},
-                        {"total_seconds", t_write - t0},
-                        {"read_mb_per_s", double(in_bytes) / 1e6 / std::max(1e-9, t_read - t0)},
-                        {"ingest_mb_per_s", double(in_bytes) / 1e6 / std::max(1e-9, t_write - t0)},
-                        {"peak_rss_bytes", peak_rss_bytes()}};
-    if (*json)
+                        {"read_seconds", report.read_seconds},
+                        {"order_seconds", report.order_seconds},
+                        {"faces_seconds", report.faces_seconds},
+                        {"adjacency_seconds", report.adjacency_seconds},
+                        {"total_seconds", total},
+                        {"ingest_mb_per_s", double(in_bytes) / 1e6 / std::max(1e-9, total)},
+                        {"memory_limit_bytes", report.memory_limit},
+                        {"peak_bytes", peak.bytes},
+                        {"peak_source", peak.source == PeakSource::Cgroup ? "cgroup" : "rss"},
+                        {"spilled_bytes", report.spilled_bytes},
+                        {"key_buckets", report.key_buckets},
+                        {"vertex_ranges", report.vertex_ranges},
+                        {"polygons_split", report.polygons_split}};
+    if (*json) {
       print_json(j);
-    else
-      std::fprintf(stderr,
-                   "ingest: %s -> %s: %llu vertices, %llu faces, %u chunks, store %.1f MB; read %.2f s (%.0f MB/s), "
-                   "build %.2f s, write %.2f s; peak RSS %.0f MB\n",
-                   in->c_str(), dir->c_str(), (unsigned long long)store.header().vertex_count,
-                   (unsigned long long)store.header().face_count, store.header().chunk_count,
-                   double(store.size_bytes()) / 1e6, t_read - t0, double(in_bytes) / 1e6 / std::max(1e-9, t_read - t0),
-                   t_build - t_read, t_write - t_build, double(peak_rss_bytes()) / 1e6);
+      return;
+    }
+    std::fprintf(stderr,
+                 "ingest: %s -> %s: %llu vertices, %llu faces, %u chunks, store %s in %.2f s (%s/s of input); "
+                 "memory limit %s, peak %s (%s), spilled %s\n",
+                 in->c_str(), dir->c_str(), (unsigned long long)h.vertex_count, (unsigned long long)h.face_count,
+                 h.chunk_count, format_bytes(double(store.size_bytes())).c_str(), total,
+                 format_bytes(double(in_bytes) / std::max(1e-9, total)).c_str(),
+                 format_memory_size(report.memory_limit).c_str(), format_memory_size(peak.bytes).c_str(),
+                 peak.source == PeakSource::Cgroup ? "cgroup" : "RSS", format_bytes(double(report.spilled_bytes)).c_str());
   });
 }
 

@@ -55,7 +55,7 @@ void print_side(const char* label, const OneSidedDistance& s, const DistanceRepo
 LoadedMesh load_mesh_or_store(const std::string& path) {
   LoadedMesh loaded;
   if (is_store_directory(path))
-    loaded.store = MeshStore::open(path);
+    loaded.store = MeshStore::open(path), loaded.store->validate_all();
   else
     loaded.buffers = read_mesh(path);
   return loaded;

@@ -1,0 +1,251 @@
+// Pass 2 of the store build: the vertex order. Every vertex gets its Hilbert key; records
+// (key, input id, position, attributes) go to key-range buckets whose bounds come from a sample
+// of the keys, and each bucket is sorted in RAM by (key, input id). Emitting the buckets in key
+// order writes positions, attributes and original ids in store order and fills the vertex map.
+// The bucket bounds only balance the work: the order is (key, id) whatever they are.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cstddef>
+#include <cstring>
+#include <numeric>
+
+#include "core/errors.h"
+#include "streaming/counting_sort.h"
+#include "streaming/memory_budget.h"
+#include "streaming/store_build_state.h"
+#include "streaming/store_writer.h"
+
+namespace streamcvd {
+
+using namespace store_build;
+
+namespace {
+
+struct OrderItem {
+  uint64_t key;
+  uint32_t id;
+  uint32_t slot;  // record index in the bucket
+};
+
+// (key, id), or for merged STL corners (key, position bits, id): identical corners adjacent.
+struct ItemLess {
+  const std::byte* records = nullptr;  // set when merging
+  uint32_t record_bytes = 0;
+  std::array<uint32_t, 3> bits(const OrderItem& a) const {
+    std::array<uint32_t, 3> b;
+    std::memcpy(b.data(), records + size_t(a.slot) * record_bytes + offsetof(KeyRecord, xyz), 12);
+    return b;
+  }
+  bool operator()(const OrderItem& a, const OrderItem& b) const {
+    if (a.key != b.key) return a.key < b.key;
+    if (records) {
+      const auto ba = bits(a), bb = bits(b);
+      if (ba != bb) return ba < bb;
+    }
+    return a.id < b.id;
+  }
+};
+
+void insertion_sort(OrderItem* a, size_t n, const ItemLess& less) {
+  for (size_t i = 1; i < n; ++i) {
+    const OrderItem x = a[i];
+    size_t j = i;
+    for (; j > 0 && less(x, a[j - 1]); --j) a[j] = a[j - 1];
+    a[j] = x;
+  }
+}
+
+// Sorts a[0, n) whose keys k satisfy k − base < 2^bits, items of equal key in id order (as they
+// arrive: every distribution below is stable). MSD radix on 11-bit digits down to runs of ≤ 32,
+// which insertion sort finishes: a surface leaves most cells of a level empty, so the runs shrink
+// fast. tmp has room for n items.
+void msd_sort(OrderItem* a, OrderItem* tmp, size_t n, uint64_t base, int bits, const ItemLess& less) {
+  if (n <= 32) return insertion_sort(a, n, less);
+  if (bits <= 0) {  // equal keys: already in id order, unless merged corners order by position first
+    if (less.records) std::sort(a, a + n, less);
+    return;
+  }
+  const int digit = std::min(bits, 11), shift = bits - digit;
+  uint32_t start[(1 << 11) + 1] = {};
+  for (size_t i = 0; i < n; ++i) ++start[((a[i].key - base) >> shift) + 1];
+  for (int d = 0; d < (1 << digit); ++d) start[d + 1] += start[d];
+  uint32_t cursor[1 << 11];
+  std::copy_n(start, 1 << digit, cursor);
+  for (size_t i = 0; i < n; ++i) tmp[cursor[(a[i].key - base) >> shift]++] = a[i];
+  std::copy_n(tmp, n, a);
+  for (int d = 0; d < (1 << digit); ++d)
+    if (start[d + 1] - start[d] > 1)
+      msd_sort(a + start[d], tmp + start[d], start[d + 1] - start[d], base + (uint64_t(d) << shift), shift, less);
+}
+
+// Sorts all items: a parallel counting sort on the top bits of the key range, then msd_sort of
+// each cell in parallel. Result in `items`.
+void sort_items(DefaultInitVector<OrderItem>& items, DefaultInitVector<OrderItem>& tmp, const ItemLess& less) {
+  const size_t n = items.size();
+  tmp.resize(n);
+  if (n <= 32) return insertion_sort(items.data(), n, less);
+  using MinMax = std::pair<uint64_t, uint64_t>;
+  const MinMax range = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, n, 1 << 16), MinMax{~uint64_t(0), 0},
+      [&](const tbb::blocked_range<size_t>& r, MinMax m) {
+        for (size_t i = r.begin(); i != r.end(); ++i) m = {std::min(m.first, items[i].key), std::max(m.second, items[i].key)};
+        return m;
+      },
+      [](MinMax a, MinMax b) { return MinMax{std::min(a.first, b.first), std::max(a.second, b.second)}; });
+  const int range_bits = std::bit_width(range.second - range.first);
+  const int cell_bits = std::min({range_bits, 20, std::max(1, int(std::bit_width(n)) - 2)});
+  const int shift = range_bits - cell_bits;
+  const uint64_t base = range.first;
+  DefaultInitVector<uint32_t> start;
+  counting_sort(
+      n, uint32_t(1) << cell_bits, [&](uint64_t i) { return uint32_t((items[i].key - base) >> shift); }, start,
+      [&](uint64_t i, uint32_t at) { tmp[at] = items[i]; });
+  items.swap(tmp);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, start.size() - 1, 256), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t c = r.begin(); c != r.end(); ++c)
+      if (start[c + 1] - start[c] > 1)
+        msd_sort(items.data() + start[c], tmp.data() + start[c], start[c + 1] - start[c], base + (uint64_t(c) << shift),
+                 shift, less);
+  });
+}
+
+}  // namespace
+
+void StoreBuilder::State::order_vertices() {
+  const auto t0 = std::chrono::steady_clock::now();
+  ordered = true;
+  const uint64_t n_in = input_vertices;
+  const uint32_t record_bytes = uint32_t(sizeof(KeyRecord)) + 4 * attribute_count;
+  // The vertex map (4 bytes per input vertex) lives until pass 3 ends.
+  const uint64_t map_bytes = 4 * n_in;
+  require(map_bytes + kMinWork, ("the vertex map of " + std::to_string(n_in) + " vertices").c_str());
+  float box_lo[3], box_hi[3];
+  for (int k = 0; k < 3; ++k) {
+    const bool empty = !(lo[k] <= hi[k]);
+    box_lo[k] = empty ? 0 : lo[k];
+    box_hi[k] = empty ? 0 : hi[k];
+  }
+  grid = make_hilbert_grid(box_lo, box_hi);
+  outputs.plan(n_in, header.faces != MeshHeaderInfo::kUnknown ? header.faces
+                     : merge_corners                          ? n_in / 3
+                                                              : std::max(input_faces, 2 * n_in));
+  auto key_of = [&](uint64_t id, const float* p) { return options.hilbert_order ? hilbert_key(grid, p) : id; };
+
+  // Buckets sized so that one, with its two item arrays, fits the sort budget.
+  const uint64_t per_vertex = record_bytes + 2 * sizeof(OrderItem);
+  const uint64_t sort_budget = std::max(kMinWork, free_after(map_bytes) / 2);
+  const uint32_t buckets = uint32_t(std::max<uint64_t>(1, (n_in * per_vertex + sort_budget - 1) / sort_budget));
+  std::vector<uint64_t> splits;  // bucket of key k = number of splits ≤ k
+  if (buckets > 1) {
+    std::vector<uint64_t> keys(sample.xyz.size() / 3);
+    for (size_t i = 0; i < keys.size(); ++i) keys[i] = key_of(i * sample.stride, &sample.xyz[3 * i]);
+    std::sort(keys.begin(), keys.end());
+    for (uint32_t b = 1; b < buckets; ++b) splits.push_back(keys[keys.size() * b / buckets]);
+  }
+  result.report.key_buckets = buckets;
+  const uint64_t resident = free_after(map_bytes + sort_budget);
+  SpillBuckets key_records(work_dir, buckets, record_bytes, resident, SpillBuckets::block_size_for(buckets, resident));
+
+  // Keys of each block in parallel, then the records to their buckets in file order.
+  uint64_t next_id = 0;
+  DefaultInitVector<uint64_t> keys;
+  std::vector<std::byte> record(record_bytes);
+  const uint32_t in_bytes = 12 + 4 * attribute_count;
+  vertex_records->drain(0, [&](std::span<const std::byte> bytes) {
+    const size_t m = bytes.size() / in_bytes;
+    keys.resize(m);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        float p[3];
+        std::memcpy(p, bytes.data() + i * in_bytes, 12);
+        keys[i] = key_of(next_id + i, p);
+      }
+    });
+    for (size_t i = 0; i < m; ++i) {
+      KeyRecord k{keys[i], uint32_t(next_id + i), {}};
+      std::memcpy(k.xyz, bytes.data() + i * in_bytes, 12);
+      std::memcpy(record.data(), &k, sizeof k);
+      std::memcpy(record.data() + sizeof k, bytes.data() + i * in_bytes + 12, 4 * attribute_count);
+      const uint32_t b = uint32_t(std::upper_bound(splits.begin(), splits.end(), keys[i]) - splits.begin());
+      key_records.append(b, record.data());
+    }
+    next_id += m;
+  });
+  vertex_records.reset();
+
+  // Each bucket sorted, then emitted in order.
+  new_of_old.resize(n_in);
+  outputs.expect("positions.f32", 12 * n_in);  // at most: merged corners give fewer
+  outputs.expect("original_ids.u32", 4 * n_in);
+  if (attribute_count) outputs.expect("vertex_attributes.f32", 4 * uint64_t(attribute_count) * n_in);
+  ArrayOutput& positions = outputs.array("positions.f32");
+  ArrayOutput& original_ids = outputs.array("original_ids.u32");
+  ArrayOutput* attributes = attribute_count ? &outputs.array("vertex_attributes.f32") : nullptr;
+  DefaultInitVector<std::byte> records;
+  DefaultInitVector<OrderItem> items, tmp;
+  DefaultInitVector<float> out_xyz, out_attributes;
+  DefaultInitVector<uint32_t> out_ids;
+  uint64_t emitted = 0;
+  for (uint32_t b = 0; b < buckets; ++b) {
+    key_records.take(b, records);
+    const size_t n = records.size() / record_bytes;
+    items.resize(n);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        KeyRecord k;
+        std::memcpy(&k, records.data() + i * record_bytes, sizeof k);
+        items[i] = {k.key, k.id, uint32_t(i)};
+      }
+    });
+    ItemLess less;
+    if (merge_corners) less = {records.data(), record_bytes};
+    sort_items(items, tmp, less);
+    // A new store vertex per item, or per run of identical corners when merging.
+    out_ids.resize(n);
+    size_t out_n = 0;
+    if (!merge_corners) {
+      out_n = n;
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          out_ids[i] = items[i].id;
+          new_of_old[items[i].id] = uint32_t(vertex_count + i);
+        }
+      });
+    } else {
+      for (size_t i = 0; i < n; ++i) {
+        // The first corner of each position (the smallest id) represents it; items[out_n − 1]
+        // is the current representative.
+        const bool same = out_n > 0 && items[i].key == items[out_n - 1].key &&
+                          less.bits(items[i]) == less.bits(items[out_n - 1]);
+        if (!same) items[out_n++] = items[i];
+        new_of_old[items[i].id] = uint32_t(vertex_count + out_n - 1);
+      }
+      for (size_t i = 0; i < out_n; ++i) out_ids[i] = items[i].id;
+    }
+    out_xyz.resize(3 * out_n);
+    out_attributes.resize(size_t(attribute_count) * out_n);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, out_n, 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        const std::byte* rec = records.data() + size_t(items[i].slot) * record_bytes;
+        std::memcpy(&out_xyz[3 * i], rec + offsetof(KeyRecord, xyz), 12);
+        std::memcpy(&out_attributes[attribute_count * i], rec + sizeof(KeyRecord), 4 * attribute_count);
+      }
+    });
+    positions.append(std::span<const float>(out_xyz));
+    original_ids.append(std::span<const uint32_t>(out_ids.data(), out_n));
+    if (attributes) attributes->append(std::span<const float>(out_attributes));
+    vertex_count += uint32_t(out_n);
+    emitted += n;
+    report("order", emitted, n_in);
+  }
+  result.report.spilled_bytes += key_records.bytes_spilled();
+  result.vertex_count = vertex_count;
+  result.report.order_seconds = seconds_since(t0);
+}
+
+}  // namespace streamcvd

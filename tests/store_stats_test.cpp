@@ -14,6 +14,7 @@
 #include "core/shapes.h"
 #include "streaming/mesh_io.h"
 #include "streaming/store.h"
+#include "tests/cli_runner.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {
@@ -284,6 +285,29 @@ TEST(StoreStats, WrongFaceListsThrow) {
   std::sort(vf.begin() + long(view.vertex_face_offsets[v]), vf.begin() + long(view.vertex_face_offsets[v + 1]));
   view.vertex_face = vf;
   EXPECT_THROW(compute_topology_stats(view), InputError);
+}
+
+// `streamcvd info` on a store directory (the store version) prints what it prints for the mesh
+// file (the soup version), line for line but the path.
+TEST(StoreStats, InfoOnAStoreMatchesInfoOnTheFile) {
+  if (!test::cli_available()) GTEST_SKIP() << "CLI not built";
+  const std::string mesh = test::data_path("bun_zipper_res2.ply");
+  const std::filesystem::path dir = test::temp_dir("store_stats_info");
+  const std::string store = (dir / "bunny.store").string();
+  const test::CliResult ingest = test::run_cli({"ingest", mesh, store, "--faces-per-chunk", "1000"});
+  ASSERT_EQ(ingest.exit_code, 0) << ingest.describe();
+  ASSERT_GE(MeshStore::open(store).view().chunks.size(), 10u);
+  const test::CliResult from_store = test::run_cli({"info", "--json", store});
+  const test::CliResult from_file = test::run_cli({"info", "--json", mesh});
+  ASSERT_EQ(from_store.exit_code, 0) << from_store.describe();
+  ASSERT_EQ(from_file.exit_code, 0) << from_file.describe();
+  auto without_path = [](std::string json, const std::string& path) {
+    const size_t at = json.find(path);
+    return at == std::string::npos ? json : json.erase(at, path.size());
+  };
+  EXPECT_EQ(without_path(from_store.out, store), without_path(from_file.out, mesh));
+  EXPECT_NE(from_store.out.find("\"duplicate_faces\": 87"), std::string::npos) << from_store.out;
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -6,7 +6,8 @@
 // joins inside it, gives its local *pieces*; the joins that leave it are kept as frontier records
 // (which piece here, which vertex there). A small global union-find over (range, piece) ids then
 // merges the pieces along those records. Memory: one range's arrays per thread, plus
-// O(pieces + frontier) records for the whole graph, never O(V).
+// O(pieces + frontier) records for the whole graph, never O(V). For scale: the mesh graph of the
+// dragon ×11 store (52.7M vertices, 101 chunks) has 573 pieces and 554k records (4.4 MB).
 //
 // Who joins what is the caller's: it fills each range through a RangePieceBuilder (add a vertex,
 // join two vertices), from its own loop over the range, so the graph can be the mesh edges, the
@@ -121,14 +122,14 @@ struct ComponentTable {
 
 /// Merges the pieces of `ranges` (ascending and contiguous; pieces[i] from ranges[i]) into
 /// components numbered by their smallest vertex. Serial, O(records · log records + pieces)
-/// time, O(pieces) memory beyond the inputs. Throws std::logic_error when the ranges do not
-/// tile, or a record has no symmetric counterpart (joins were not symmetric).
+/// time, O(pieces + records / 8) memory beyond the inputs; thread-safe (pure). Throws
+/// std::logic_error when the ranges do not tile, or a record has no symmetric counterpart.
 ComponentTable merge_range_pieces(std::span<const VertexRange> ranges, std::span<const RangePieces> pieces);
 
 /// Ranges for chunk-wise work over a store: its chunks, each cut into equal parts so that no
 /// range exceeds max_vertices and there are at least min_ranges when the chunks allow it (a
-/// store of few chunks then still runs on every thread). Depends on neither the thread count
-/// nor anything but the chunk table. O(ranges).
+/// store of few chunks then still runs on every thread). Depends on nothing but the chunk table
+/// (not on the thread count). O(ranges); thread-safe (pure).
 std::vector<VertexRange> chunk_ranges(std::span<const Chunk> chunks, uint32_t max_vertices = 1u << 20,
                                       uint32_t min_ranges = 16);
 

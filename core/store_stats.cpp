@@ -289,10 +289,14 @@ TopologyStats compute_topology_stats(const MeshView& mesh) {
   TopologyStats s;
   s.vertices = nv;
   s.faces = mesh.face_count();
+  uint32_t covered = 0;  // the chunks must tile [0, V): each range is visited exactly once
+  for (const Chunk& c : mesh.chunks) {
+    if (c.vertex_begin != covered || c.vertex_end < c.vertex_begin)
+      throw InputError("compute_topology_stats: the chunks do not tile the vertices");
+    covered = c.vertex_end;
+  }
+  if (covered != nv) throw InputError("compute_topology_stats: the chunks do not cover the vertices");
   const std::vector<VertexRange> ranges = chunk_ranges(mesh.chunks);
-  if (!ranges.empty() && (ranges.front().begin != 0 || ranges.back().end != nv))
-    throw std::logic_error("compute_topology_stats: the chunks do not cover the vertices");
-  if (nv > 0 && ranges.empty()) throw std::logic_error("compute_topology_stats: a store without chunks");
 
   const double zero_guess = topology::zero_area(chunk_box(mesh.chunks));
   std::vector<Partial> partial(ranges.size());

@@ -7,16 +7,13 @@
 
 namespace streamcvd {
 
-/// Every TopologyStats field, equal to compute_topology_stats(mesh.soup()) (same conventions,
-/// core/mesh_stats.cpp), from the store's vertex→face lists instead of a global sort: each
-/// vertex's fan gives its edges with their face counts, orientation and bowtie test; duplicates
-/// are found among the faces a vertex owns; components and boundary loops by a chunk-wise
-/// union-find (core/chunked_components.h). TBB-parallel over vertex ranges of the chunks;
-/// O(V + F) time. Memory: per thread, one range's union-find arrays (≤ 8 MB) and one fan; in
-/// all, O(pieces + chunk frontiers + boundary vertices on frontiers), never O(V) or O(F) beyond
-/// the mapped store, which is read once, range by range. Thread-safe (pure).
-/// Precondition: a valid view (MeshStore::build / open check its arrays); throws InputError if
-/// the vertex→face lists disagree with the triangles, std::logic_error if the chunks do not tile.
+/// Every TopologyStats field, equal to compute_topology_stats(mesh.soup()) (same conventions),
+/// from each vertex's fan (vertex→face) instead of a global sort, components and boundary loops
+/// by a chunk-wise union-find (core/chunked_components.h); how: core/store_stats.cpp.
+/// O(V + F) time, TBB-parallel over the chunks, thread-safe (pure). Memory: ≤ 8 MB of union-find
+/// per thread plus O(pieces + chunk frontiers), never O(V) or O(F) beyond the mapped store,
+/// which is read once, chunk by chunk. Precondition: a valid view (MeshStore::build / open);
+/// throws InputError if the chunks do not tile [0, V) or vertex→face disagrees with the triangles.
 TopologyStats compute_topology_stats(const MeshView& mesh);
 
 }  // namespace streamcvd

@@ -285,6 +285,14 @@ TEST(StoreStats, WrongFaceListsThrow) {
   std::sort(vf.begin() + long(view.vertex_face_offsets[v]), vf.begin() + long(view.vertex_face_offsets[v + 1]));
   view.vertex_face = vf;
   EXPECT_THROW(compute_topology_stats(view), InputError);
+  // Chunks that leave a vertex out.
+  MeshView gap = store.view();
+  std::vector<Chunk> chunks(gap.chunks.begin(), gap.chunks.end());
+  ASSERT_GE(chunks.size(), 2u);
+  chunks[1].vertex_begin += 1;
+  gap.chunks = chunks;
+  EXPECT_THROW(compute_topology_stats(gap), InputError);
+  EXPECT_NO_THROW(compute_topology_stats(store.view()));
 }
 
 // `streamcvd info` on a store directory (the store version) prints what it prints for the mesh

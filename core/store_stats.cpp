@@ -120,6 +120,9 @@ void visit_fan(const MeshView& m, uint32_t v, std::span<const uint32_t> fan, dou
   for (size_t i = 0; i < fan.size(); ++i) {
     const uint32_t f = fan[i];
     if (i > 0 && f == fan[i - 1]) continue;  // a face repeating v is listed once per corner
+    // Out of order, a repeat would pass for another face: its edges counted twice, silently.
+    if (i > 0 && f < fan[i - 1])
+      throw InputError("compute_topology_stats: the face list of vertex " + std::to_string(v) + " is not ascending");
     const uint64_t lf = s.faces.size();
     if (lf >= kMaxFanFaces)
       throw InputError("compute_topology_stats: vertex " + std::to_string(v) + " has more than " +

@@ -285,6 +285,14 @@ TEST(StoreStats, WrongFaceListsThrow) {
   std::sort(vf.begin() + long(view.vertex_face_offsets[v]), vf.begin() + long(view.vertex_face_offsets[v + 1]));
   view.vertex_face = vf;
   EXPECT_THROW(compute_topology_stats(view), InputError);
+  // A face listed twice, apart: ascending order is what makes a repeat visible.
+  std::vector<uint32_t> vf2(store.view().vertex_face.begin(), store.view().vertex_face.end());
+  const uint64_t first = store.view().vertex_face_offsets[v];
+  ASSERT_GE(store.view().faces_of(v).size(), 3u);
+  vf2[first + 2] = vf2[first];
+  MeshView repeated = store.view();
+  repeated.vertex_face = vf2;
+  EXPECT_THROW(compute_topology_stats(repeated), InputError);
   // Chunks that leave a vertex out.
   MeshView gap = store.view();
   std::vector<Chunk> chunks(gap.chunks.begin(), gap.chunks.end());

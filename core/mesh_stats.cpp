@@ -8,16 +8,22 @@
 // Choices the header leaves open, fixed here:
 // - A face is degenerate when two of its indices are equal or its area (computed in double) is
 //   ≤ 1e-12 · (bounding-box diagonal)², which includes exactly 0.
-// - Self-loop edges (a face (a,a,b) has one) are not edges; the face's other two edge uses count.
+// - Self-loop edges (a face (a,a,b) has one) are not edges; the face's other two edge uses count,
+//   so such a face uses edge {a,b} twice: an edge's "number of faces" is its number of uses.
 // - A face's vertex *set* decides duplicates: (a,b,c) = (c,b,a) = (b,c,a); (a,a,b) = (a,b,b).
 // - Non-manifold vertex: on an edge used by > 2 faces, or whose incident faces split into more
 //   than one class when faces are joined across the 2-face edges at that vertex (a bowtie).
 // - genus is reported for a closed manifold with one component and even χ (an odd χ can only be
 //   a non-orientable surface); −1 otherwise.
 // - Quality of a degenerate triangle: Q = 0 and angles (0°, 0°, 180°).
+// - Bounding box: NaN coordinates are skipped, unless vertex 0 has one (then that axis is NaN).
+// The per-face rules (area, degeneracy, vertex sets, box, derived figures) live in
+// core/topology_conventions.h, shared with the store version (core/store_stats.cpp), which must
+// give the same TopologyStats from the store's adjacency in bounded memory.
 #include "core/mesh_stats.h"
 
 #include "core/errors.h"
+#include "core/topology_conventions.h"
 
 #include <oneapi/tbb/blocked_range.h>
 #include <oneapi/tbb/parallel_for.h>
@@ -112,47 +118,24 @@ struct DisjointSets {
   }
 };
 
-struct Bbox {
-  double lo[3], hi[3];
-  double diagonal2() const {
-    double d2 = 0;
-    for (int i = 0; i < 3; ++i) d2 += (hi[i] - lo[i]) * (hi[i] - lo[i]);
-    return d2;
-  }
-};
+using topology::Box;
+using topology::zero_area;
 
-Bbox bounding_box(std::span<const float> pos) {
-  Bbox b{{0, 0, 0}, {0, 0, 0}};
-  if (pos.size() < 3) return b;
-  for (int i = 0; i < 3; ++i) b.lo[i] = b.hi[i] = pos[i];
-  for (size_t v = 0; v + 2 < pos.size(); v += 3)
-    for (int i = 0; i < 3; ++i) {
-      b.lo[i] = std::min(b.lo[i], double(pos[v + i]));
-      b.hi[i] = std::max(b.hi[i], double(pos[v + i]));
-    }
+Box bounding_box(std::span<const float> pos) {
+  Box b;
+  for (size_t v = 0; v + 2 < pos.size(); v += 3) b.add(&pos[v]);
+  b.finish(pos.size() >= 3 ? pos.data() : nullptr);
   return b;
 }
 
 /// Twice the area of face f, in double.
 double double_area(const TriangleSoupView& m, uint64_t f) {
-  const float* p[3];
-  for (int k = 0; k < 3; ++k) p[k] = &m.positions[3 * size_t(m.triangles[3 * f + k])];
-  double e1[3], e2[3];
-  for (int i = 0; i < 3; ++i) {
-    e1[i] = double(p[1][i]) - p[0][i];
-    e2[i] = double(p[2][i]) - p[0][i];
-  }
-  const double c[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-  return std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+  return topology::double_area(m.positions, m.triangles[3 * f], m.triangles[3 * f + 1], m.triangles[3 * f + 2]);
 }
 
 bool repeated_index(std::span<const uint32_t> tri, uint64_t f) {
-  const uint32_t a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
-  return a == b || b == c || a == c;
+  return topology::repeated_index(tri[3 * f], tri[3 * f + 1], tri[3 * f + 2]);
 }
-
-/// Area threshold below which a face counts as degenerate (see the file comment).
-double zero_area(const Bbox& box) { return 1e-12 * box.diagonal2(); }
 
 /// Faces whose vertex set repeats an earlier face's. A face with distinct vertices a < b < c
 /// has exactly one use whose third vertex exceeds both ends, that of edge (a, b); two such faces
@@ -176,10 +159,7 @@ uint64_t count_duplicate_faces(std::span<const uint32_t> tri, std::span<const Ed
   std::vector<std::array<uint32_t, 3>> small_sets;
   for (uint64_t f = 0; f < tri.size() / 3; ++f) {
     if (!repeated_index(tri, f)) continue;
-    std::array<uint32_t, 3> s = {tri[3 * f], tri[3 * f + 1], tri[3 * f + 2]};
-    std::sort(s.begin(), s.end());
-    if (s[0] == s[1]) s = {s[0], s[2], s[2]};  // {a,a,b} and {a,b,b} are the same set {a,b}
-    small_sets.push_back(s);
+    small_sets.push_back(topology::vertex_set(tri[3 * f], tri[3 * f + 1], tri[3 * f + 2]));
   }
   std::sort(small_sets.begin(), small_sets.end());
   for (size_t k = 1; k < small_sets.size(); ++k) duplicates += small_sets[k] == small_sets[k - 1];
@@ -238,7 +218,7 @@ TopologyStats compute_topology_stats(const TriangleSoupView& mesh) {
   const uint64_t nf = mesh.face_count();
   s.vertices = nv;
   s.faces = nf;
-  const Bbox box = bounding_box(mesh.positions);
+  const Box box = bounding_box(mesh.positions);
   for (int i = 0; i < 3; ++i) s.bbox_min[i] = float(box.lo[i]), s.bbox_max[i] = float(box.hi[i]);
 
   const double eps = zero_area(box);
@@ -288,11 +268,8 @@ TopologyStats compute_topology_stats(const TriangleSoupView& mesh) {
     s.nonmanifold_vertices += (mark[v] & kOnNonManifold) || bowtie[v];
   }
   s.isolated_vertices = nv - referenced;
-  s.euler_characteristic = int64_t(referenced) - int64_t(s.edges) + int64_t(nf);
-  s.closed_manifold = nf > 0 && s.boundary_edges == 0 && s.nonmanifold_edges == 0 && s.nonmanifold_vertices == 0;
   s.consistently_oriented = oriented;
-  if (s.closed_manifold && s.components == 1 && s.euler_characteristic % 2 == 0)
-    s.genus = (2 - s.euler_characteristic) / 2;
+  topology::derive_figures(s, referenced);
   return s;
 }
 

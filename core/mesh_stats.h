@@ -29,6 +29,7 @@ struct TopologyStats {
 
 /// Computes every TopologyStats field from positions and triangles alone (no CSR needed).
 /// O(F log F) time, O(F) memory. Thread-safe (pure). Throws InputError if an index is ≥ V.
+/// For a store (MeshView) use the bounded-memory overload of core/store_stats.h: same figures.
 TopologyStats compute_topology_stats(const TriangleSoupView& mesh);
 
 /// Triangle quality (DESIGN.md §9): Q = 6/√3 · area / (half-perimeter · longest edge), 1 for an

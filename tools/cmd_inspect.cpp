@@ -7,6 +7,7 @@
 #include "core/errors.h"
 #include "core/mesh_stats.h"
 #include "core/shapes.h"
+#include "core/store_stats.h"
 #include "streaming/mesh_io.h"
 #include "streaming/store.h"
 #include "streaming/memory_budget.h"
@@ -109,8 +110,16 @@ void add_info_command(CLI::App& app) {
   cmd->add_option("input", *path, "Mesh file (PLY/OBJ/OFF/STL, optionally .zst) or store directory")->required();
   cmd->add_flag("--json", *json, "Print JSON instead of text");
   cmd->callback([=] {
-    LoadedSoup mesh = load_soup(*path);
-    TopologyStats stats = compute_topology_stats(mesh.view());
+    // A store is read chunk by chunk through its adjacency, in bounded memory; a mesh file is
+    // read into RAM anyway, so the soup version (one sort of its edges) serves it.
+    TopologyStats stats;
+    if (is_store_directory(*path)) {
+      const MeshStore store = MeshStore::open(*path);
+      stats = compute_topology_stats(store.view());
+    } else {
+      LoadedSoup mesh = load_soup(*path);
+      stats = compute_topology_stats(mesh.view());
+    }
     if (*json) {
       nlohmann::json j = topology_json(stats);
       j["file"] = *path;

@@ -109,17 +109,24 @@ void add_info_command(CLI::App& app) {
   auto json = std::make_shared<bool>(false);
   cmd->add_option("input", *path, "Mesh file (PLY/OBJ/OFF/STL, optionally .zst) or store directory")->required();
   cmd->add_flag("--json", *json, "Print JSON instead of text");
+  auto job = std::make_shared<JobOptions>();
+  add_job_options(cmd, *job);
   cmd->callback([=] {
-    // A store is read chunk by chunk through its adjacency, in bounded memory; a mesh file is
-    // read into RAM anyway, so the soup version (one sort of its edges) serves it.
-    TopologyStats stats;
+    // Read chunk by chunk through the store's adjacency, in bounded memory: a mesh file is first
+    // streamed into a temporary store (in RAM if it fits --memory, else in anonymous work files).
+    auto threads = thread_limit(*job);
+    StoreBuildOptions options;
+    options.memory_limit = memory_limit(*job);
+    options.work_directory = job->work_dir;
+    MeshStore store;
     if (is_store_directory(*path)) {
-      const MeshStore store = MeshStore::open(*path);
-      stats = compute_topology_stats(store.view());
+      store = MeshStore::open(*path);
+      store.validate_all();
     } else {
-      LoadedSoup mesh = load_soup(*path);
-      stats = compute_topology_stats(mesh.view());
+      ProgressLine progress("info", *job);
+      store = MeshStore::build_from_file(*path, options, {}, nullptr, [&](const BuildProgress& p) { progress.update(p); });
     }
+    const TopologyStats stats = compute_topology_stats(store.view());
     if (*json) {
       nlohmann::json j = topology_json(stats);
       j["file"] = *path;

@@ -14,7 +14,6 @@
 #include <vector>
 
 #include "core/errors.h"
-#include "streaming/input_stream.h"
 #include "streaming/mesh_io.h"
 #include "tests/test_util.h"
 
@@ -179,8 +178,8 @@ TEST(PlyReader, FloatVerticesWithExtraPropertiesInEveryEncoding) {
                                   "comment made by ply_reader_test\nobj_info nothing\n");
     std::string path = write_file(dir, std::string(enc_name(enc)) + ".ply", bytes);
     expect_reference(read_mesh(path), as_floats(kPos));
-    InputStream in(path);
-    expect_reference(read_ply(in), as_floats(kPos));
+    // Read from standard-input-like content too: no extension, the format sniffed.
+    expect_reference(read_mesh(write_file(dir, std::string(enc_name(enc)) + ".mesh", bytes)), as_floats(kPos));
   }
 }
 
@@ -302,12 +301,16 @@ TEST(PlyReader, FacesBeforeVertices) {
   }
 }
 
-TEST(PlyReader, PointCloudWithoutFaces) {
+TEST(PlyReader, PointCloudWithoutFacesIsRejected) {
+  // No element to read faces from, or an empty one: every command needs triangles, so the read
+  // fails at once, naming what the file has.
   auto dir = test::temp_dir("ply_points");
+  const Elem points = vertex_element(kPos, {{"float", "x", ""}, {"float", "y", ""}, {"float", "z", ""}});
   for (Enc enc : kAllEncodings) {
-    MeshBuffers m = read_mesh(write_file(dir, "p.ply", build_ply(enc, {vertex_element(kPos, {{"float", "x", ""}, {"float", "y", ""}, {"float", "z", ""}})})));
-    EXPECT_EQ(m.vertex_count(), 6u);
-    EXPECT_EQ(m.face_count(), 0u);
+    SCOPED_TRACE(enc_name(enc));
+    expect_error(write_file(dir, "p.ply", build_ply(enc, {points})), {"line 7", "no face element", "vertex (6)"});
+    expect_error(write_file(dir, "e.ply", build_ply(enc, {points, face_element({}, {{"int", "vertex_indices", "uchar"}})})),
+                 {"no faces", "6 vertices"});
   }
 }
 
@@ -414,9 +417,10 @@ TEST(PlyReader, BinaryBodyErrorsNameTheByte) {
 TEST(PlyReader, HugeCountsFailFastWithoutAllocating) {
   auto dir = test::temp_dir("ply_huge");
   const std::string head = "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\n"
-                           "property float y\nproperty float z\nend_header\n";
+                           "property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                           "end_header\n";
   std::string small = head + std::string(24, '\0');
-  ASSERT_LT(small.size(), 200u);
+  ASSERT_LT(small.size(), 250u);
   expect_error(write_file(dir, "huge.ply", small), {"byte " + std::to_string(head.size()), "header counts need"});
   // Compressed: no exact size bound before reading, so the reader must stop at the real end.
   expect_error(write_file(dir, "huge.ply.zst", zstd_compress(small)), {"unexpected end of file", "vertex 2 of 4000000000"});

@@ -179,7 +179,7 @@ void add_ingest_command(CLI::App& app) {
     MeshStore store = MeshStore::build_and_write(std::move(soup), *dir, options);
     double t_build = now_seconds();
     double t_write = t_build;
-    uint64_t in_bytes = std::filesystem::file_size(*in);
+    uint64_t in_bytes = *in == "-" ? 0 : std::filesystem::file_size(*in);  // "-": standard input
     nlohmann::json j = {{"input", *in},
                         {"store", *dir},
                         {"input_bytes", in_bytes},

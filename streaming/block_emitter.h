@@ -16,21 +16,30 @@ namespace streamcvd {
 /// True when `options` asks for the vertex attribute `name` (All, or Named and listed).
 bool attribute_selected(const ReadOptions& options, std::string_view name);
 
+/// One read's block buffers and its sink. The hot paths (reserve, write, commit) are inline and
+/// allocation-free; a full block is handed out from a cold call. Triangle blocks are always
+/// preceded by the vertices buffered so far (MeshSink::triangles' guarantee).
 class BlockEmitter {
  public:
+  /// Allocates the blocks for `options.block` elements; throws InputError when it is 0.
   BlockEmitter(InputStream& in, MeshSink& sink, const ReadOptions& options);
 
   /// The header handed to sink.begin(); readers fill it in before begin().
   MeshHeaderInfo& header() { return header_; }
-  /// Sizes the blocks for header().attributes and calls sink.begin(). Idempotent; a flush
-  /// calls it if the reader has not (OBJ: faces before the first vertex).
+  /// Sizes the attribute rows for header().attributes and calls sink.begin(). Idempotent; a
+  /// flush calls it if the reader has not (OBJ: faces before the first vertex).
   void begin();
+  /// Whether begin() has run: the header can no longer change.
   bool begun() const { return begun_; }
+  /// Counts the readers keep (polygons split, strip triangles dropped); the rest is filled in
+  /// by the emitter.
   ReadStats& stats() { return stats_; }
+  /// The read's options (attribute selection for the header).
   const ReadOptions& options() const { return options_; }
 
   /// Id of the next vertex: vertices handed out plus those waiting in the block.
   uint64_t vertex_count() const { return vertices_sent_ + pending_vertices_; }
+  /// Floats per vertex in the attribute rows (header().attributes.size() once begun).
   size_t attribute_count() const { return attributes_; }
 
   /// Room for min(want, space left) more vertices, flushing a full block first; want ≥ 1, the

@@ -101,7 +101,8 @@ bool has_zst_extension(const std::string& path);
 
 /// Streams the mesh at `path` ("-" = standard input, named "stdin" in messages) into `sink`:
 /// format from the extension, else from the content. Memory: O(block + header + 4 MiB of input
-/// buffer), whatever the file size. Throws InputError "<file>: line N|byte N: <problem>"
+/// buffer), whatever the file size (a line of OBJ, OFF or ascii STL is held whole, up to its
+/// 256 MiB limit; ascii PLY lines of any length stream). Throws InputError "<file>: line N|byte N: <problem>"
 /// (truncation, bad values, indices out of range, a PLY with no element readable as faces, a
 /// mesh without vertices or without triangles...); the sink's own exceptions pass through.
 void read_mesh_stream(const std::string& path, MeshSink& sink, const ReadOptions& options = {});
@@ -117,7 +118,8 @@ struct MeshWithAttributes {
 /// read_mesh_stream (STL corners merged here, in order of first appearance), then checked by
 /// validate_soup. Same errors as read_mesh_stream.
 MeshBuffers read_mesh(const std::string& path);
-/// Same, keeping the vertex attributes selected by `options` (options.block is ignored).
+/// Same, keeping the vertex attributes selected by `options` (its block size changes only the
+/// memory of the read, never the result).
 MeshWithAttributes read_mesh_with_attributes(const std::string& path, const ReadOptions& options = {});
 
 /// Checks a soup in RAM: V > 0, finite coordinates, indices < V. Throws InputError naming

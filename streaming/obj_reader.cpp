@@ -13,9 +13,9 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "streaming/block_emitter.h"
 #include "streaming/input_stream.h"
 #include "streaming/text_tokens.h"
-#include "streaming/block_emitter.h"
 
 namespace streamcvd {
 
@@ -104,7 +104,7 @@ void stream_obj(InputStream& in, BlockEmitter& out) {
         if (tok.empty()) in.fail("vertex needs 3 coordinates");
         c = parse_coordinate(in, tok);
       }
-      // Then an optional w, or three colour values (a 4th value or a 7th is ignored).
+      // Then an optional w, or three colour values; any other count carries no colour.
       std::string_view extra[4];
       int extras = 0;
       while (extras < 4 && !(extra[extras] = next_token(p, e)).empty()) ++extras;

@@ -202,7 +202,7 @@ struct AsciiReader {
     for (int64_t j = 0; j < n; ++j) {
       int64_t v;
       q = integer(q, v);
-      if (v == -1 || v == 0xFFFFFFFF) strip.restart();  // -1, or -1 written as a uint
+      if (is_strip_restart(v)) strip.restart();
       else if (v < 0 || v >= int64_t(nv)) fail("item " + std::to_string(j) + ": " + index_problem(v, nv));
       else strip.add(uint32_t(v));
     }

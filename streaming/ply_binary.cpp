@@ -90,9 +90,6 @@ struct Field {
   Scalar type = Scalar::F32;
 };
 
-// -1 ends a strip; 0xFFFFFFFF is -1 stored as uint32 (never a vertex id: ids are < 2^32-1).
-inline bool is_strip_restart(int64_t v) { return v == -1 || v == 0xFFFFFFFF; }
-
 struct BinaryReader {
   InputStream& in;
   const Header& h;

@@ -71,6 +71,10 @@ void read_ascii_body(InputStream& in, const Header& h, BlockEmitter& out);
 /// Why corner index `v` is not a vertex id below `nv` (the body readers add the position).
 std::string index_problem(int64_t v, uint32_t nv);
 
+/// A strip index that restarts the strip: -1, or -1 stored as a uint32 (0xFFFFFFFF is never a
+/// vertex id: ids are below 2^32-1).
+inline bool is_strip_restart(int64_t v) { return v == -1 || v == 0xFFFFFFFF; }
+
 /// Decodes the index lists of a `tristrips` element: -1 restarts the strip (so does the end of a
 /// list); within a strip s, triangle i is (s[i], s[i+1], s[i+2]) for even i and
 /// (s[i+1], s[i], s[i+2]) for odd i, so that all share one orientation. Triangles with a

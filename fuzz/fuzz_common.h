@@ -1,19 +1,22 @@
 // Shared plumbing of the libFuzzer targets: the readers and the store loader read files, so each
 // input is written to a scratch file (in /dev/shm when it exists, so no disk I/O) and read back
 // through the public entry points. InputError is the expected outcome for most inputs; any
-// other exception, a crash, a leak, a sanitizer report or a timeout is a finding.
+// other exception, a crash, a leak, a sanitizer report, a broken MeshSink contract or a timeout
+// is a finding. RecordingSink also serves the reader tests (tests/mesh_stream_test.cpp).
 #pragma once
 
 #include <unistd.h>
 #include <zstd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -21,6 +24,7 @@
 #include "core/errors.h"
 #include "core/mesh_stats.h"
 #include "streaming/mesh_io.h"
+#include "streaming/mesh_reader.h"
 #include "streaming/store.h"
 
 namespace streamcvd::fuzz {
@@ -80,6 +84,67 @@ inline std::string write_mesh_input(const uint8_t* data, size_t size, const char
   return path;
 }
 
+/// Records what read_mesh_stream hands out and checks the MeshSink contract (mesh_reader.h) as
+/// the blocks arrive: begin() first and once, blocks of 1 to `block` elements, attribute rows
+/// of header.attributes.size() floats, ids below header.vertices where the reader checks them
+/// (PLY, OFF), corners_by_value ids 3t, 3t+1, 3t+2 after their vertices, no vertex block after
+/// a triangle block when vertices_before_triangles, end() once with matching counts, and every
+/// id (OBJ forward references too) below the final vertex count by then. `violation` names the
+/// first rule broken (empty: none).
+struct RecordingSink final : MeshSink {
+  explicit RecordingSink(uint32_t block_size) : block(block_size) {}
+
+  uint32_t block;
+  MeshHeaderInfo header;
+  ReadStats stats;
+  std::vector<float> xyz, attributes;
+  std::vector<uint32_t> corners;
+  std::vector<size_t> vertex_blocks, triangle_blocks;  ///< block sizes, in vertices / triangles
+  int begins = 0, ends = 0;
+  std::string violation;
+
+  void check(bool ok, const char* rule) {
+    if (!ok && violation.empty()) violation = rule;
+  }
+  void begin(const MeshHeaderInfo& h) override {
+    check(begins == 0 && ends == 0 && vertex_blocks.empty() && triangle_blocks.empty(), "begin() not first and once");
+    ++begins;
+    header = h;
+  }
+  void vertices(std::span<const float> v, std::span<const float> a) override {
+    check(begins == 1 && ends == 0, "vertices() outside begin()/end()");
+    check(v.size() % 3 == 0 && v.size() >= 3 && v.size() <= 3 * size_t(block), "vertex block size");
+    check(a.size() == header.attributes.size() * (v.size() / 3), "attribute row size");
+    check(!header.vertices_before_triangles || triangle_blocks.empty(), "vertices after triangles");
+    for (float x : v) check(std::isfinite(x), "non-finite coordinate");
+    vertex_blocks.push_back(v.size() / 3);
+    xyz.insert(xyz.end(), v.begin(), v.end());
+    attributes.insert(attributes.end(), a.begin(), a.end());
+  }
+  void triangles(std::span<const uint32_t> t) override {
+    check(begins == 1 && ends == 0, "triangles() outside begin()/end()");
+    check(t.size() % 3 == 0 && t.size() >= 3 && t.size() <= 3 * size_t(block), "triangle block size");
+    const bool bounded = header.format == MeshFormat::Ply || header.format == MeshFormat::Off;
+    for (uint32_t id : t) {
+      if (bounded) check(id < header.vertices, "id not below the announced vertex count");
+      if (header.corners_by_value) {
+        check(id == corners.size(), "corners_by_value ids are not 3t, 3t+1, 3t+2");
+        check(id < xyz.size() / 3, "corners_by_value triangle before its vertices");
+      }
+      corners.push_back(id);
+    }
+    triangle_blocks.push_back(t.size() / 3);
+  }
+  void end(const ReadStats& s) override {
+    check(begins == 1 && ends == 0, "end() not last and once");
+    ++ends;
+    stats = s;
+    check(s.vertices == xyz.size() / 3 && s.triangles == corners.size() / 3, "ReadStats counts");
+    check(s.triangles > 0, "end() without triangles");
+    for (uint32_t id : corners) check(id < xyz.size() / 3, "id past the last vertex at end()");
+  }
+};
+
 /// Runs `body`; InputError is an accepted outcome, anything else escaping is a finding.
 template <class Body>
 void expect_input_error_or_success(Body body) {
@@ -128,14 +193,39 @@ inline void write_store_input(const uint8_t* data, size_t size, const std::strin
   }
 }
 
-/// One input of a mesh-reader target: read_mesh, then (when it reads) the topology statistics
-/// and the in-RAM store (adjacency of whatever soup came out: repeated indices, non-manifold
-/// fans, isolated vertices). Aborts on a contract violation.
+/// One input of a mesh-reader target: read_mesh_stream in small blocks (3 to 10 elements, from
+/// the mode byte) through a RecordingSink, then the in-RAM collector, which must agree with it
+/// (same success, same soup and attributes); then (when
+/// it reads) the topology statistics and the in-RAM store (adjacency of whatever soup came out:
+/// repeated indices, non-manifold fans, isolated vertices). Aborts on a contract violation.
 inline void run_mesh_input(const uint8_t* data, size_t size, const char* extension) {
   const std::string path = write_mesh_input(data, size, extension);
   if (path.empty()) return;
+  ReadOptions read_options;
+  read_options.block = 3 + (data[0] >> 2) % 8;
+  RecordingSink sink(read_options.block);
+  bool streamed = false;
   expect_input_error_or_success([&] {
-    MeshBuffers mesh = read_mesh(path);
+    read_mesh_stream(path, sink, read_options);
+    streamed = true;
+  });
+  if (!sink.violation.empty()) {
+    std::fprintf(stderr, "MeshSink contract broken: %s\n", sink.violation.c_str());
+    std::abort();
+  }
+  MeshWithAttributes read;
+  bool collected = false;
+  expect_input_error_or_success([&] {
+    read = read_mesh_with_attributes(path, read_options);  // same attribute choice: same checks
+    collected = true;
+  });
+  // Same file, same answer: the collector keeps the blocks as they came (STL: merges corners).
+  if (streamed != collected || (streamed && sink.ends != 1)) std::abort();
+  if (!collected) return;
+  const MeshBuffers& mesh = read.mesh;
+  if (sink.stats.triangles != mesh.face_count() || read.values.size() != sink.attributes.size()) std::abort();
+  if (!sink.header.corners_by_value && (mesh.positions != sink.xyz || mesh.triangles != sink.corners)) std::abort();
+  expect_input_error_or_success([&] {
     TopologyStats stats = compute_topology_stats(mesh.view());
     if (stats.vertices != mesh.vertex_count() || stats.faces != mesh.face_count()) std::abort();
     StoreBuildOptions options;

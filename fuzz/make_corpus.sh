@@ -40,8 +40,19 @@ printf '\x04\x00\x00\x00\x00\x00\x00\x00\x01\x00\x00\x00\x02\x00\x00\x00\x03\x3e
 seed ply be "$work/be.ply"
 printf 'ply\nformat ascii 1.0\ncomment c\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar uint vertex_indices\nelement edge 1\nproperty int a\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n0\n' > "$work/a.ply"
 seed ply a "$work/a.ply"
+# Triangle strips (-1 restarts, a degenerate join, no trailing -1) with vertex attributes, in
+# ascii and little endian (floats 0 and 1 are 00000000 and 0000803f).
+printf 'ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty float confidence\nproperty float nx\nelement tristrips 1\nproperty list int int vertex_indices\nend_header\n0 0 0 9 0.5 0\n1 0 0 9 0.5 0\n0 1 0 9 0.5 0\n1 1 0 9 0.5 0\n10 0 1 2 3 -1 3 3 2 1 0\n' > "$work/strips.ply"
+seed ply strips_ascii "$work/strips.ply"
+printf 'ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nproperty ushort quality\nelement tristrips 1\nproperty list int int vertex_indices\nend_header\n' > "$work/strips_le.ply"
+o='\x00\x00\x00\x00' l='\x00\x00\x80\x3f' q='\x07\x00'
+printf "$o$o$o$q$l$o$o$q$o$l$o$q$l$l$o$q" >> "$work/strips_le.ply"
+printf '\x06\x00\x00\x00\x00\x00\x00\x00\x01\x00\x00\x00\x02\x00\x00\x00\xff\xff\xff\xff\x01\x00\x00\x00\x03\x00\x00\x00' >> "$work/strips_le.ply"
+seed ply strips_le "$work/strips_le.ply"
 printf '# c\nv 0 0 0\nv 1 0 0 1\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\ng x\nf 1/1/1 2/1/1 3/1/1\nf -4//1 -2//1 -1//1\nf 1 2 \\\n 3 4\n' > "$work/c.obj"
 seed obj corners "$work/c.obj"
+printf 'v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nf 1 2 3\n' > "$work/colours.obj"
+seed obj colours "$work/colours.obj"
 printf 'COFF\n# comment\n4 2 0\n0 0 0 255 0 0 255\n1 0 0 255 0 0 255\n1 1 0 0 255 0 255\n0 1 0 0 0 255 255\n4 0 1 2 3 1 0 0\n3 0 2 3\n' > "$work/c.off"
 seed off coff "$work/c.off"
 printf 'STOFF 3 1\n0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 1\n3 0 1 2\n' > "$work/st.off"

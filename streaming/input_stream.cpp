@@ -29,10 +29,21 @@ struct InputStream::Zstd {
 };
 
 InputStream::InputStream(std::string path) : path_(std::move(path)) {
-  // O_NONBLOCK: opening a FIFO that has no writer would otherwise block forever. The type is
-  // then checked on the open descriptor (no window for the path to change in between).
-  fd_ = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
-  if (fd_ < 0) throw InputError(error_at(path_, std::strerror(errno)));
+  if (path_ == "-") {
+    // Standard input: already open, and left open (and blocking as it is) for the caller.
+    path_ = "stdin";
+    fd_ = STDIN_FILENO;
+    owns_fd_ = false;
+  } else {
+    // O_NONBLOCK: opening a FIFO that has no writer would otherwise block forever. The type is
+    // then checked on the open descriptor (no window for the path to change in between).
+    fd_ = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+    if (fd_ < 0) throw InputError(error_at(path_, std::strerror(errno)));
+  }
+  auto close_fd = [this] {
+    if (owns_fd_ && fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  };
   struct stat st {};
   const char* problem = nullptr;
   if (::fstat(fd_, &st) != 0) problem = std::strerror(errno);
@@ -40,13 +51,16 @@ InputStream::InputStream(std::string path) : path_(std::move(path)) {
   else if (!S_ISREG(st.st_mode) && !S_ISFIFO(st.st_mode)) problem = "not a regular file or pipe";
   // Blocking reads from here on (a pipe's writer may be slower than us). A FIFO without a
   // writer then reads as end of file at once, hence "file is empty" below.
-  else if (::fcntl(fd_, F_SETFL, ::fcntl(fd_, F_GETFL) & ~O_NONBLOCK) != 0) problem = std::strerror(errno);
+  else if (owns_fd_ && ::fcntl(fd_, F_SETFL, ::fcntl(fd_, F_GETFL) & ~O_NONBLOCK) != 0) problem = std::strerror(errno);
   if (problem) {
-    ::close(fd_);
-    fd_ = -1;
+    close_fd();
     throw InputError(error_at(path_, problem));
   }
   file_size_ = S_ISREG(st.st_mode) ? uint64_t(st.st_size) : 0;
+  if (!owns_fd_ && file_size_ > 0) {  // "< file" on stdin: what is left after the current offset
+    const off_t at = ::lseek(fd_, 0, SEEK_CUR);
+    if (at > 0) file_size_ = at < off_t(file_size_) ? file_size_ - uint64_t(at) : 0;
+  }
 #ifdef POSIX_FADV_SEQUENTIAL
   ::posix_fadvise(fd_, 0, 0, POSIX_FADV_SEQUENTIAL);
 #endif
@@ -71,14 +85,13 @@ InputStream::InputStream(std::string path) : path_(std::move(path)) {
       end_ = got;
     }
   } catch (...) {
-    ::close(fd_);
-    fd_ = -1;
+    close_fd();
     throw;
   }
 }
 
 InputStream::~InputStream() {
-  if (fd_ >= 0) ::close(fd_);
+  if (owns_fd_ && fd_ >= 0) ::close(fd_);
 }
 
 size_t InputStream::read_source(char* dst, size_t n) {

@@ -1,6 +1,6 @@
-// Buffered byte source over a file, decompressing zstd transparently (detected by the frame
-// magic, whatever the extension). Readers pull bytes or lines from it; it never holds the
-// whole file, only a buffer of a few MiB.
+// Buffered byte source over a file or standard input, decompressing zstd transparently
+// (detected by the frame magic, whatever the extension). Readers pull bytes or lines from it;
+// it never holds the whole file, only a buffer of a few MiB.
 #pragma once
 
 #include <cstddef>
@@ -15,20 +15,25 @@ namespace streamcvd {
 
 class InputStream {
  public:
-  /// Opens `path` (a regular file or a pipe). Throws InputError naming the file when it is
-  /// missing, unreadable, a directory, a device or socket, or empty (a FIFO without a writer
+  /// Opens `path` (a regular file or a pipe; "-" reads standard input, named "stdin" in
+  /// messages). Throws InputError naming the file when it is missing, unreadable, a directory,
+  /// a device (a terminal on stdin included) or socket, or empty (a FIFO without a writer
   /// reads as empty: opening never blocks).
   explicit InputStream(std::string path);
   ~InputStream();
   InputStream(const InputStream&) = delete;
   InputStream& operator=(const InputStream&) = delete;
 
+  /// The name used in error messages: the path, or "stdin" for "-".
   const std::string& path() const { return path_; }
   bool compressed() const { return zstd_ != nullptr; }
-  /// Size of the file on disk in bytes.
+  /// Size of the file on disk in bytes; 0 for a pipe (size unknown: empty files are rejected).
   uint64_t file_size() const { return file_size_; }
   /// Bytes of (decompressed) data consumed so far: the offset used in error messages.
   uint64_t offset() const { return consumed_before_buffer_ + pos_; }
+  /// Bytes of the file itself behind offset(), for progress against file_size(): offset() for
+  /// plain data, the compressed bytes read so far for zstd.
+  uint64_t raw_offset() const { return zstd_ ? file_read_ : offset(); }
   /// 1-based number of the line last returned by next_line().
   uint64_t line_number() const { return line_; }
 
@@ -61,6 +66,7 @@ class InputStream {
 
   std::string path_;
   int fd_ = -1;
+  bool owns_fd_ = true;           // false for standard input (never closed here)
   uint64_t file_size_ = 0;
   uint64_t file_read_ = 0;        // raw bytes read from the file
   struct Zstd;

@@ -1,17 +1,16 @@
-// Generic read entry points: format from the extension (after stripping ".zst") or, failing
-// that, from the first bytes of the (decompressed) content; then the per-format reader and a
-// validation pass over the soup.
+// read_mesh_stream: format from the extension (after stripping ".zst") or, failing that, from
+// the first bytes of the (decompressed) content; then the per-format producer. The in-RAM
+// collectors (read_mesh...) are in mesh_collect.cpp.
 #include <algorithm>
-#include <bit>
 #include <cctype>
-#include <cmath>
 #include <cstring>
 #include <string>
 #include <string_view>
 
 #include "core/errors.h"
+#include "streaming/block_emitter.h"
 #include "streaming/input_stream.h"
-#include "streaming/mesh_io.h"
+#include "streaming/mesh_reader.h"
 
 namespace streamcvd {
 
@@ -97,44 +96,20 @@ MeshFormat format_from_path(const std::string& path) {
 
 bool has_zst_extension(const std::string& path) { return ends_with(lower(path), ".zst"); }
 
-MeshBuffers read_mesh(const std::string& path) {
+void read_mesh_stream(const std::string& path, MeshSink& sink, const ReadOptions& options) {
   InputStream in(path);
   MeshFormat format;
+  // A pipe has no extension to go by ("-"): the content decides.
   if (!format_from_extension(path, format)) format = sniff_format(in);
-  MeshBuffers mesh;
+  BlockEmitter out(in, sink, options);
+  out.header().format = format;
   switch (format) {
-    case MeshFormat::Ply: mesh = read_ply(in); break;
-    case MeshFormat::Obj: mesh = read_obj(in); break;
-    case MeshFormat::Off: mesh = read_off(in); break;
-    case MeshFormat::Stl: mesh = read_stl(in); break;
+    case MeshFormat::Ply: stream_ply(in, out); break;
+    case MeshFormat::Obj: stream_obj(in, out); break;
+    case MeshFormat::Off: stream_off(in, out); break;
+    case MeshFormat::Stl: stream_stl(in, out); break;
   }
-  validate_soup(path, mesh);
-  return mesh;
-}
-
-void validate_soup(const std::string& path, const MeshBuffers& mesh) {
-  if (mesh.positions.size() % 3 != 0)
-    throw InputError(error_at(path, "position array length " + std::to_string(mesh.positions.size()) + " is not a multiple of 3"));
-  if (mesh.triangles.size() % 3 != 0)
-    throw InputError(error_at(path, "index array length " + std::to_string(mesh.triangles.size()) + " is not a multiple of 3"));
-  const uint64_t v = mesh.positions.size() / 3;
-  if (v == 0) throw InputError(error_at(path, "no vertices"));
-  if (v > 0xFFFFFFFFull) throw InputError(error_at(path, "more than 2^32-1 vertices (" + std::to_string(v) + ")"));
-  // Cheap whole-array tests first (they vectorize); the slow loops only run to name the culprit.
-  uint32_t non_finite = 0;  // exponent bits all set: inf or nan (std::isfinite does not vectorize)
-  for (float x : mesh.positions) non_finite |= (std::bit_cast<uint32_t>(x) & 0x7f800000u) == 0x7f800000u;
-  if (non_finite)
-    for (size_t i = 0; i < mesh.positions.size(); ++i)
-      if (!std::isfinite(mesh.positions[i]))
-        throw InputError(error_at(path, "vertex " + std::to_string(i / 3) + " has a non-finite coordinate (" +
-                                            std::to_string(mesh.positions[i]) + ")"));
-  uint32_t max_index = 0;
-  for (uint32_t t : mesh.triangles) max_index = t > max_index ? t : max_index;
-  if (!mesh.triangles.empty() && max_index >= v)
-    for (size_t i = 0; i < mesh.triangles.size(); ++i)
-      if (mesh.triangles[i] >= v)
-        throw InputError(error_at(path, "face " + std::to_string(i / 3) + " uses vertex " +
-                                            std::to_string(mesh.triangles[i]) + " of " + std::to_string(v)));
+  out.finish();
 }
 
 }  // namespace streamcvd

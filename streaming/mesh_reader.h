@@ -33,13 +33,20 @@ struct MeshHeaderInfo {
   static constexpr uint64_t kUnknown = ~uint64_t(0);
   MeshFormat format = MeshFormat::Ply;
   uint64_t vertices = kUnknown;  ///< vertex records the header announces (PLY, OFF); kUnknown for OBJ, STL
-  uint64_t faces = kUnknown;     ///< face records announced (PLY face or strip lists, OFF, binary STL)
+  /// Face records announced (PLY `face`, OFF, binary STL): a polygon record gives several
+  /// triangles. kUnknown for OBJ, ascii STL and PLY `tristrips` (a strip holds any number).
+  uint64_t faces = kUnknown;
   uint64_t input_bytes = 0;      ///< size of the file on disk, 0 for a pipe
   bool compressed = false;       ///< zstd input: input_bytes counts compressed bytes
-  /// STL: every triangle brings its three corners by value, as vertices 3t, 3t+1, 3t+2; corners
-  /// with bitwise identical coordinates (−0 folded to +0 by the reader) are one vertex, merged by
-  /// the consumer (the store builder merges them in its sort, read_mesh() with a hash table).
+  /// STL: every triangle t brings its three corners by value, as vertices 3t, 3t+1, 3t+2
+  /// (−0 folded to +0 by the reader), and triangles() repeats (3t, 3t+1, 3t+2). Bitwise
+  /// identical corners are one vertex, merged by the consumer (the store builder in its sort,
+  /// read_mesh() with a hash table, in order of first appearance).
   bool corners_by_value = false;
+  /// True when every vertex block comes before the first triangle block (PLY with the vertex
+  /// element first, OFF). False for OBJ, STL and PLY files that put faces first: see
+  /// MeshSink::triangles for what may then arrive early.
+  bool vertices_before_triangles = false;
   std::vector<VertexAttribute> attributes;  ///< in the order of MeshSink::vertices' rows
 };
 
@@ -52,28 +59,34 @@ struct ReadStats {
   uint64_t bytes = 0;                ///< (decompressed) bytes consumed
 };
 
-/// Receives a mesh block by block, in file order. Vertex ids are implicit (the i-th vertex
-/// handed out has id i); triangles refer to them. Called from the reading thread only.
+/// Receives a mesh block by block, in file order: begin(), then vertices() and triangles()
+/// blocks, then end(). Vertex ids are implicit (the i-th vertex handed out has id i);
+/// triangles refer to them. A block holds 1 to ReadOptions::block elements (the last block of
+/// an element, or vertices handed out early, may be shorter). Called from the reading thread.
 class MeshSink {
  public:
   virtual ~MeshSink() = default;
   /// Once, before any data.
   virtual void begin(const MeshHeaderInfo& header) = 0;
   /// The next xyz.size()/3 vertices (finite coordinates, checked by the reader); `attributes`
-  /// holds header.attributes.size() floats per vertex, row-major (empty when there are none).
+  /// holds header.attributes.size() floats per vertex, row-major, each the value as stored
+  /// (uchar 200 → 200.0f; not checked). Empty when there are no attributes.
   virtual void vertices(std::span<const float> xyz, std::span<const float> attributes) = 0;
-  /// The next triangles, three vertex ids each. PLY and OFF ids are < the announced vertex count
-  /// (checked by the reader when read); OBJ ids may point forward and are checked once the file
-  /// has ended, before end() is called.
+  /// The next triangles, three vertex ids each. Every vertex read before a triangle block has
+  /// been handed out before it. PLY and OFF ids are < header.vertices (checked when read), but
+  /// may precede their vertices when the PLY face element comes first; OBJ ids may point
+  /// forward (past the vertices read so far) and are checked once the file has ended, before
+  /// end() is called.
   virtual void triangles(std::span<const uint32_t> corners) = 0;
   /// Once, after the last block; not called when the read fails.
   virtual void end(const ReadStats& stats) = 0;
 };
 
 struct ReadOptions {
-  /// Elements per block handed to the sink (vertices or triangles).
+  /// Elements per block handed to the sink (vertices or triangles); at least 1.
   uint32_t block = 1u << 16;
-  /// Which vertex attributes to carry: all (default), none, or those named.
+  /// Which vertex attributes to carry: all (default), none, or those named (in file order;
+  /// names the file lacks are simply absent from header.attributes).
   enum class Attributes { All, None, Named } attributes = Attributes::All;
   std::vector<std::string> attribute_names;  ///< with Attributes::Named
   /// Called between blocks with the (raw) bytes consumed so far and header.input_bytes.
@@ -86,10 +99,12 @@ MeshFormat format_from_path(const std::string& path);
 /// True when `path` ends in ".zst" (case-insensitive).
 bool has_zst_extension(const std::string& path);
 
-/// Streams the mesh at `path` ("-" = standard input) into `sink`: format from the extension,
-/// else from the content. Memory: O(block + header), whatever the file size. Throws InputError
-/// "<file>: line N|byte N: <problem>" (truncation, bad values, indices out of range, a PLY with
-/// no element readable as faces...); the sink's own exceptions pass through.
+/// Streams the mesh at `path` ("-" = standard input, named "stdin" in messages) into `sink`:
+/// format from the extension, else from the content. Memory: O(block + header + 4 MiB of input
+/// buffer), whatever the file size (a line of OBJ, OFF or ascii STL is held whole, up to its
+/// 256 MiB limit; ascii PLY lines of any length stream). Throws InputError "<file>: line N|byte N: <problem>"
+/// (truncation, bad values, indices out of range, a PLY with no element readable as faces, a
+/// mesh without vertices or without triangles...); the sink's own exceptions pass through.
 void read_mesh_stream(const std::string& path, MeshSink& sink, const ReadOptions& options = {});
 
 /// Mesh with its vertex attributes, in RAM (what read_mesh_with_attributes collects).
@@ -100,9 +115,15 @@ struct MeshWithAttributes {
 };
 
 /// Convenience for small meshes and tests: the whole soup in RAM, collected from
-/// read_mesh_stream (STL corners merged here, in order of first appearance). Validates V > 0.
+/// read_mesh_stream (STL corners merged here, in order of first appearance), then checked by
+/// validate_soup. Same errors as read_mesh_stream.
 MeshBuffers read_mesh(const std::string& path);
-/// Same, keeping the vertex attributes selected by `options`.
+/// Same, keeping the vertex attributes selected by `options` (its block size changes only the
+/// memory of the read, never the result).
 MeshWithAttributes read_mesh_with_attributes(const std::string& path, const ReadOptions& options = {});
+
+/// Checks a soup in RAM: V > 0, finite coordinates, indices < V. Throws InputError naming
+/// `path` and the first offending vertex/face.
+void validate_soup(const std::string& path, const MeshBuffers& mesh);
 
 }  // namespace streamcvd

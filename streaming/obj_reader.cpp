@@ -1,5 +1,7 @@
-// Wavefront OBJ reader: `v` and `f` records only, polygons fan-triangulated.
-// One pass over next_line() views with a hand tokenizer and fast_float; no iostreams.
+// Wavefront OBJ reader: `v` (with optional per-vertex colours "v x y z r g b") and `f` records
+// only, polygons fan-triangulated. One pass over next_line() views with a hand tokenizer and
+// fast_float; no iostreams. Faces may name vertices defined later: the largest such forward
+// reference is checked against the total once the file has ended.
 #include <fast_float/fast_float.h>
 
 #include <charconv>
@@ -11,9 +13,9 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "streaming/block_emitter.h"
 #include "streaming/input_stream.h"
 #include "streaming/text_tokens.h"
-#include "streaming/mesh_io.h"
 
 namespace streamcvd {
 
@@ -70,9 +72,11 @@ uint32_t parse_corner(InputStream& in, std::string_view tok, uint64_t defined, F
 
 }  // namespace
 
-MeshBuffers read_obj(InputStream& in) {
-  MeshBuffers mesh;
-  std::vector<uint32_t> corners;
+void stream_obj(InputStream& in, BlockEmitter& out) {
+  out.header().vertices_before_triangles = false;  // faces may come first and point forward
+  // Colour columns: the first `v` record decides whether there are any ("v x y z r g b").
+  constexpr const char* kColours[3] = {"red", "green", "blue"};
+  int colour_slot[3] = {-1, -1, -1};  // attribute column of r, g, b, or -1 when not carried
   ForwardReference forward;
   std::string joined;  // a logical line assembled from backslash-continued physical lines
   std::string_view line;
@@ -100,29 +104,43 @@ MeshBuffers read_obj(InputStream& in) {
         if (tok.empty()) in.fail("vertex needs 3 coordinates");
         c = parse_coordinate(in, tok);
       }
-      // An optional w and per-vertex colours may follow; they are ignored.
-      if (mesh.positions.size() / 3 >= kMaxVertices) in.fail("more than 4294967295 vertices");
-      mesh.positions.insert(mesh.positions.end(), xyz, xyz + 3);
+      // Then an optional w, or three colour values; any other count carries no colour.
+      std::string_view extra[4];
+      int extras = 0;
+      while (extras < 4 && !(extra[extras] = next_token(p, e)).empty()) ++extras;
+      if (!out.begun()) {
+        for (int k = 0; k < 3 && extras == 3; ++k)
+          if (attribute_selected(out.options(), kColours[k])) {
+            colour_slot[k] = int(out.header().attributes.size());
+            out.header().attributes.push_back({kColours[k], ScalarType::F32});
+          }
+        out.begin();
+      }
+      if (out.vertex_count() >= kMaxVertices) in.fail("more than 4294967295 vertices");
+      float* row = out.add_vertex(xyz[0], xyz[1], xyz[2]);
+      // Colours as written (0..1 or 0..255, not checked). A vertex without colours in a
+      // coloured file gets 0 (black) rather than failing.
+      for (int k = 0; k < 3; ++k)
+        if (colour_slot[k] >= 0) row[colour_slot[k]] = extras == 3 ? parse_coordinate(in, extra[k]) : 0.0f;
     } else if (key[0] == 'f') {
-      uint64_t defined = mesh.positions.size() / 3;
-      corners.clear();
-      for (std::string_view tok = next_token(p, e); !tok.empty(); tok = next_token(p, e))
-        corners.push_back(parse_corner(in, tok, defined, forward));
-      if (corners.size() < 3)
-        in.fail("face with " + std::to_string(corners.size()) + " corners (at least 3 needed)");
-      for (size_t i = 1; i + 1 < corners.size(); ++i)
-        mesh.triangles.insert(mesh.triangles.end(), {corners[0], corners[i], corners[i + 1]});
-      if (corners.size() > 3) ++mesh.polygons_split;
+      const uint64_t defined = out.vertex_count();
+      PolygonFan fan(out);  // emits nothing before the third corner
+      uint64_t corners = 0;
+      for (std::string_view tok = next_token(p, e); !tok.empty(); tok = next_token(p, e), ++corners)
+        fan.add(parse_corner(in, tok, defined, forward));
+      if (corners < 3) in.fail("face with " + std::to_string(corners) + " corners (at least 3 needed)");
+      fan.end();
     }
     // Other one-letter records (g, o, s, l, p) are ignored.
   }
-  uint64_t vertices = mesh.positions.size() / 3;
+  const uint64_t vertices = out.vertex_count();
   if (vertices == 0) throw InputError(error_at(in.path(), "no vertices ('v' records) in OBJ file"));
+  // Before end(): the sink may hold triangles pointing past the last vertex until this passes.
   if (forward.index > vertices)
     throw InputError(error_at_line(in.path(), forward.line,
                                    "face index " + std::to_string(forward.index) + " is out of range (the file defines " +
                                        std::to_string(vertices) + " vertices)"));
-  return mesh;
+  out.flush();
 }
 
 }  // namespace streamcvd

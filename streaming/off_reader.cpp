@@ -14,9 +14,9 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "streaming/block_emitter.h"
 #include "streaming/input_stream.h"
 #include "streaming/text_tokens.h"
-#include "streaming/mesh_io.h"
 
 namespace streamcvd {
 
@@ -94,7 +94,7 @@ bool parse_keyword(std::string_view tok, OffKind& kind) {
 
 }  // namespace
 
-MeshBuffers read_off(InputStream& in) {
+void stream_off(InputStream& in, BlockEmitter& out) {
   Tokens tokens(in);
   std::string_view tok;
   if (!tokens.next(tok)) throw InputError(error_at(in.path(), "no OFF header (only blank lines and comments)"));
@@ -120,10 +120,11 @@ MeshBuffers read_off(InputStream& in) {
   if (vertex_count == 0) in.fail("OFF header declares 0 vertices");
   if (vertex_count > std::numeric_limits<uint32_t>::max()) in.fail("more than 4294967295 vertices");
 
-  MeshBuffers mesh;
-  // Smallest records: "0 0 0\n" and "3 0 1 2\n". Vectors still grow if the bound is too low.
-  mesh.positions.reserve(3 * std::min(vertex_count, in.max_elements(6)));
-  mesh.triangles.reserve(3 * std::min(face_count, in.max_elements(8)));
+  MeshHeaderInfo& header = out.header();
+  header.vertices = vertex_count;
+  header.faces = face_count;
+  header.vertices_before_triangles = true;
+  out.begin();
   const int coordinates = kind.homogeneous ? 4 : 3;
   for (uint64_t i = 0; i < vertex_count; ++i) {
     float xyzw[4] = {0, 0, 0, 1};
@@ -138,32 +139,30 @@ MeshBuffers read_off(InputStream& in) {
       if (!std::isfinite(xyzw[0]) || !std::isfinite(xyzw[1]) || !std::isfinite(xyzw[2]))
         in.fail("vertex x/w is not finite");
     }
-    mesh.positions.insert(mesh.positions.end(), xyzw, xyzw + 3);
+    out.add_vertex(xyzw[0], xyzw[1], xyzw[2]);
     tokens.drop_line();  // colour, normal, texture coordinates
   }
+  out.flush();
 
-  std::vector<uint32_t> corners;
   for (uint64_t f = 0; f < face_count; ++f) {
     if (!tokens.next(tok))
       in.fail("file ends after " + std::to_string(f) + " of " + std::to_string(face_count) + " faces");
     uint64_t n = parse_count(in, tok, "face corner count");
     if (n < 3) in.fail("face with " + std::to_string(n) + " corners (at least 3 needed)");
-    corners.clear();
+    PolygonFan fan(out);
     for (uint64_t k = 0; k < n; ++k) {
       if (!tokens.next(tok)) in.fail("file ends inside face " + std::to_string(f));
       uint64_t v = parse_count(in, tok, "vertex index");
       if (v >= vertex_count)
         in.fail("vertex index " + std::to_string(v) + " is out of range (" + std::to_string(vertex_count) +
                 " vertices)");
-      corners.push_back(uint32_t(v));
+      fan.add(uint32_t(v));
     }
-    for (size_t i = 1; i + 1 < corners.size(); ++i)
-      mesh.triangles.insert(mesh.triangles.end(), {corners[0], corners[i], corners[i + 1]});
-    if (n > 3) ++mesh.polygons_split;
+    fan.end();
     tokens.drop_line();  // optional face colour
   }
   // Anything after the faces (edges, trailing comments) is ignored.
-  return mesh;
+  out.flush();
 }
 
 }  // namespace streamcvd

@@ -1,6 +1,8 @@
-// STL reader, ascii and binary. STL stores each facet's three corners by value, so vertices are
-// rebuilt by merging bitwise-identical coordinates (-0.0 == +0.0) with an open-addressing hash
-// table over the positions array, in order of first appearance.
+// STL reader, ascii and binary. STL stores each facet's three corners by value and so does this
+// reader (MeshHeaderInfo::corners_by_value): triangle t is vertices 3t, 3t+1, 3t+2, with -0.0
+// folded onto +0.0 so that equal coordinates are equal bits. Merging them into shared vertices
+// is the consumer's job (a sort in the store builder, a hash table in read_mesh): no table of
+// every vertex here, so memory stays O(block).
 #include <fast_float/fast_float.h>
 
 #include <algorithm>
@@ -15,9 +17,9 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "streaming/block_emitter.h"
 #include "streaming/input_stream.h"
 #include "streaming/text_tokens.h"
-#include "streaming/mesh_io.h"
 
 namespace streamcvd {
 
@@ -30,70 +32,18 @@ constexpr uint64_t kMaxVertices = std::numeric_limits<uint32_t>::max();
 constexpr size_t kHeaderBytes = 84;  // 80-byte header + uint32 facet count
 constexpr size_t kRecordBytes = 50;  // normal, 3 corners (12 float32) + uint16 attribute
 
-/// Deduplicates vertices: slots hold vertex index + 1 (0 = empty), keys live in `positions`, so
-/// the table costs 8-16 bytes per vertex. Linear probing, load factor kept at or below 1/2.
-class VertexMerger {
- public:
-  VertexMerger(std::vector<float>& positions, uint64_t expected_vertices) : positions_(positions) {
-    uint64_t size = 1024;
-    while (size < 2 * expected_vertices) size *= 2;
-    slots_.assign(size, 0);
-    mask_ = size - 1;
-  }
-
-  /// Index of the vertex xyz[0..2], appending it when new; -0.0 is stored as +0.0. Returns
-  /// false when the mesh would exceed 2^32-1 vertices.
-  bool insert(const float* xyz, uint32_t& index) {
-    uint32_t key[3] = {bits(xyz[0]), bits(xyz[1]), bits(xyz[2])};
-    for (uint64_t s = hash(key) & mask_;; s = (s + 1) & mask_) {
-      uint32_t slot = slots_[s];
-      if (slot == 0) {
-        uint64_t count = positions_.size() / 3;
-        if (count >= kMaxVertices) return false;
-        index = uint32_t(count);
-        slots_[s] = index + 1;
-        float stored[3];
-        std::memcpy(stored, key, sizeof stored);
-        positions_.insert(positions_.end(), stored, stored + 3);
-        if (2 * (count + 1) > slots_.size()) grow();
-        return true;
-      }
-      if (std::memcmp(&positions_[3 * uint64_t(slot - 1)], key, sizeof key) == 0) {
-        index = slot - 1;
-        return true;
-      }
-    }
-  }
-
- private:
-  static uint32_t bits(float v) {
-    if (v == 0.0f) v = 0.0f;  // -0.0 compares equal to 0.0: fold it onto +0.0
-    return std::bit_cast<uint32_t>(v);
-  }
-  static uint64_t hash(const uint32_t* k) {
-    uint64_t h = (uint64_t(k[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(k[1]) * 0xC2B2AE3D27D4EB4Full) ^
-                 (uint64_t(k[2]) * 0x165667B19E3779F9ull);
-    h ^= h >> 29;
-    h *= 0xBF58476D1CE4E5B9ull;
-    return h ^ (h >> 32);
-  }
-  void grow() {
-    slots_.assign(slots_.size() * 2, 0);
-    mask_ = slots_.size() - 1;
-    uint32_t count = uint32_t(positions_.size() / 3);
-    for (uint32_t v = 0; v < count; ++v) {
-      uint32_t key[3];
-      std::memcpy(key, &positions_[3 * uint64_t(v)], sizeof key);
-      uint64_t s = hash(key) & mask_;
-      while (slots_[s] != 0) s = (s + 1) & mask_;
-      slots_[s] = v + 1;
-    }
-  }
-
-  std::vector<float>& positions_;
-  std::vector<uint32_t> slots_;
-  uint64_t mask_ = 0;
-};
+/// Hands out one triangle by value: its corners as three new vertices (-0.0 folded onto +0.0:
+/// x + 0.0f is +0.0 for either zero and x otherwise), then the triangle of their ids. False
+/// when the ids would pass 2^32-1.
+bool emit_by_value(BlockEmitter& out, const float* a, const float* b, const float* c) {
+  const uint64_t id = out.vertex_count();
+  if (id + 2 >= kMaxVertices) return false;
+  out.add_vertex(a[0] + 0.0f, a[1] + 0.0f, a[2] + 0.0f);
+  out.add_vertex(b[0] + 0.0f, b[1] + 0.0f, b[2] + 0.0f);
+  out.add_vertex(c[0] + 0.0f, c[1] + 0.0f, c[2] + 0.0f);
+  out.add_triangle(uint32_t(id), uint32_t(id + 1), uint32_t(id + 2));
+  return true;
+}
 
 // Ascii STL is read token by token across lines, so a line break is blank here too.
 inline bool is_space(char c) {
@@ -140,7 +90,7 @@ void corners(const char* record, float* c) {
     for (int k = 0; k < 9; ++k) c[k] = std::bit_cast<float>(__builtin_bswap32(std::bit_cast<uint32_t>(c[k])));
 }
 
-MeshBuffers read_binary(InputStream& in) {
+void read_binary(InputStream& in, BlockEmitter& out) {
   char header[kHeaderBytes];
   size_t got = in.read(header, kHeaderBytes);
   if (got < kHeaderBytes)
@@ -150,7 +100,8 @@ MeshBuffers read_binary(InputStream& in) {
   std::memcpy(&count, header + 80, 4);
   if constexpr (std::endian::native == std::endian::big) count = __builtin_bswap32(count);
   const uint64_t needed = kHeaderBytes + kRecordBytes * uint64_t(count);
-  if (!in.compressed() && in.file_size() < needed)
+  // The size check only for a file on disk (a pipe's size is unknown: the loop finds the end).
+  if (!in.compressed() && in.file_size() > 0 && in.file_size() < needed)
     throw InputError(error_at_byte(in.path(), 80,
                                    "truncated binary STL: header declares " + std::to_string(count) +
                                        " triangles (" + std::to_string(needed) + " bytes) but the file has " +
@@ -158,11 +109,8 @@ MeshBuffers read_binary(InputStream& in) {
   // Bytes past the declared triangles (some writers pad) are ignored.
   if (count == 0) throw InputError(error_at_byte(in.path(), 80, "binary STL declares 0 triangles"));
 
-  MeshBuffers mesh;
-  const uint64_t bounded = std::min<uint64_t>(count, in.max_elements(kRecordBytes));
-  mesh.triangles.reserve(3 * bounded);
-  mesh.positions.reserve(3 * (bounded / 2 + 3));  // a closed mesh has V ≈ F/2
-  VertexMerger merger(mesh.positions, bounded / 2 + 3);
+  out.header().faces = count;
+  out.begin();
   uint64_t done = 0;
   while (done < count) {
     std::span<const char> buf = in.fill(kRecordBytes * std::min<uint64_t>(count - done, 1 << 16));
@@ -178,18 +126,15 @@ MeshBuffers read_binary(InputStream& in) {
         if (!std::isfinite(c[k]))
           throw InputError(error_at_byte(in.path(), kHeaderBytes + kRecordBytes * (done + r) + 12 + 4 * k,
                                          "coordinate is not finite in triangle " + std::to_string(done + r)));
-      for (int k = 0; k < 3; ++k) {
-        uint32_t v;
-        if (!merger.insert(c + 3 * k, v))
-          throw InputError(error_at_byte(in.path(), kHeaderBytes + kRecordBytes * (done + r),
-                                         "more than 4294967295 vertices"));
-        mesh.triangles.push_back(v);
-      }
+      if (!emit_by_value(out, c, c + 3, c + 6))
+        throw InputError(error_at_byte(in.path(), kHeaderBytes + kRecordBytes * (done + r),
+                                       "more than 4294967295 vertices (corners of " + std::to_string(done + r) +
+                                           " triangles)"));
     }
     in.consume(kRecordBytes * n);
     done += n;
   }
-  return mesh;
+  out.flush();
 }
 
 /// Whitespace-separated tokens over the stream's lines.
@@ -224,13 +169,12 @@ class Tokens {
 /// Token grammar, tolerant to any whitespace and to several solids:
 ///   solid [name] { facet [normal nx ny nz] outer loop {vertex x y z}≥3 endloop endfacet } endsolid [name]
 /// A facet with more than 3 vertices is fan-triangulated.
-MeshBuffers read_ascii(InputStream& in) {
-  MeshBuffers mesh;
-  VertexMerger merger(mesh.positions, 1 << 15);
+void read_ascii(InputStream& in, BlockEmitter& out) {
+  out.begin();
   Tokens tokens(in);
   std::string_view tok;
   bool in_solid = false, in_facet = false, in_loop = false;
-  std::vector<uint32_t> corners;
+  std::vector<float> loop;  // xyz of the current facet's corners (3 of them, nearly always)
   while (tokens.next(tok)) {
     if (in_loop && is_keyword(tok, "vertex")) {
       float xyz[3];
@@ -238,25 +182,24 @@ MeshBuffers read_ascii(InputStream& in) {
         if (!tokens.next(tok)) in.fail("file ends inside a vertex");
         c = parse_coordinate(in, tok);
       }
-      uint32_t v;
-      if (!merger.insert(xyz, v)) in.fail("more than 4294967295 vertices");
-      corners.push_back(v);
+      loop.insert(loop.end(), xyz, xyz + 3);
     } else if (in_loop && is_keyword(tok, "endloop")) {
       in_loop = false;
     } else if (in_facet && !in_loop && is_keyword(tok, "outer")) {
       if (!tokens.next(tok) || !is_keyword(tok, "loop")) in.fail("expected 'loop' after 'outer'");
-      if (!corners.empty()) in.fail("second 'outer loop' in one facet");
+      if (!loop.empty()) in.fail("second 'outer loop' in one facet");
       in_loop = true;
     } else if (in_facet && !in_loop && is_keyword(tok, "endfacet")) {
-      if (corners.size() < 3)
-        in.fail("facet with " + std::to_string(corners.size()) + " vertices (at least 3 needed)");
-      for (size_t i = 1; i + 1 < corners.size(); ++i)
-        mesh.triangles.insert(mesh.triangles.end(), {corners[0], corners[i], corners[i + 1]});
-      if (corners.size() > 3) ++mesh.polygons_split;
+      const size_t n = loop.size() / 3;
+      if (n < 3) in.fail("facet with " + std::to_string(n) + " vertices (at least 3 needed)");
+      // A polygon facet is fanned, each triangle again with its corners by value.
+      for (size_t i = 1; i + 1 < n; ++i)
+        if (!emit_by_value(out, &loop[0], &loop[3 * i], &loop[3 * i + 3])) in.fail("more than 4294967295 vertices");
+      if (n > 3) ++out.stats().polygons_split;
       in_facet = false;
     } else if (in_solid && !in_facet && is_keyword(tok, "facet")) {
       in_facet = true;
-      corners.clear();
+      loop.clear();
       // "normal nx ny nz" is skipped unparsed: normals are recomputed downstream and some
       // writers emit "nan" there.
       if (tokens.next(tok)) {
@@ -279,12 +222,16 @@ MeshBuffers read_ascii(InputStream& in) {
     }
   }
   if (in_facet) in.fail("file ends inside a facet");
-  if (mesh.triangles.empty()) throw InputError(error_at(in.path(), "no facets in ascii STL"));
-  return mesh;
+  if (out.vertex_count() == 0) throw InputError(error_at(in.path(), "no facets in ascii STL"));
+  out.flush();
 }
 
 }  // namespace
 
-MeshBuffers read_stl(InputStream& in) { return looks_ascii(in) ? read_ascii(in) : read_binary(in); }
+void stream_stl(InputStream& in, BlockEmitter& out) {
+  out.header().corners_by_value = true;
+  out.header().vertices_before_triangles = false;  // interleaved, each triangle after its corners
+  looks_ascii(in) ? read_ascii(in, out) : read_binary(in, out);
+}
 
 }  // namespace streamcvd

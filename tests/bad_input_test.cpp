@@ -81,6 +81,22 @@ std::string binary_ply(std::vector<float> xyz, std::vector<std::vector<int32_t>>
 
 const std::string kAsciiTriangle = "0 0 0\n1 0 0\n0 1 0\n";
 
+/// Header of a PLY with 3 float vertices and the element `element` holding `records` lists.
+std::string ply_list_header(const std::string& format, const std::string& element, uint64_t records,
+                            const std::string& list = "list int int vertex_indices") {
+  return "ply\nformat " + format + " 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+         "element " + element + " " + std::to_string(records) + "\nproperty " + list + "\nend_header\n";
+}
+
+/// Binary PLY: the triangle's vertices, then a tristrips element with one list.
+std::string binary_strips(const std::vector<int32_t>& list) {
+  std::string s = ply_list_header("binary_little_endian", "tristrips", 1);
+  for (float x : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) s += le(x);
+  s += le(int32_t(list.size()));
+  for (int32_t i : list) s += le(i);
+  return s;
+}
+
 std::string binary_stl(const std::vector<float>& corners, uint32_t declared) {
   std::string s(80, ' ');
   s += le(declared);
@@ -154,6 +170,26 @@ const std::vector<BadInput>& bad_inputs() {
       {"PlyHeaderCommentOver1MiB", "m.ply",
        [](auto&) { return "ply\nformat ascii 1.0\ncomment " + std::string(size_t(2) << 20, 'c') + "\n"; }},
       {"PlyBinaryGarbage", "m.ply", [](auto&) { return "ply\n" + garbage(5000, 1); }},
+      {"PlyOnlyVertices", "m.ply",
+       [](auto&) {
+         return "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                "end_header\n" + kAsciiTriangle;
+       }},
+      {"PlyZeroFaces", "m.ply", [](auto&) { return ply_header("ascii", 3, 0) + kAsciiTriangle; }},
+      {"PlyUnknownFaceElement", "m.ply",
+       [](auto&) { return ply_list_header("ascii", "polygon", 1, "list uchar int vertex_indices") + kAsciiTriangle + "3 0 1 2\n"; }},
+      {"PlyStripIndexOutOfRange", "m.ply",
+       [](auto&) { return ply_list_header("ascii", "tristrips", 1) + kAsciiTriangle + "5 0 1 2 -1 3\n"; }},
+      {"PlyStripIndexOutOfRangeBinary", "m.ply", [](auto&) { return binary_strips({0, 1, 2, 7}); }},
+      {"PlyStripNegativeIndexZstd", "m.ply.zst", [](auto& d) { return zstd_of(d, binary_strips({0, 1, -3})); }},
+      {"PlyStripsAllDegenerate", "m.ply", [](auto&) { return binary_strips({0, 0, 1, 1}); }},
+      {"PlyTruncatedBinaryFaceBlockZstd", "m.ply.zst",
+       [](auto& d) {
+         // 1000 triangles in the fast path's layout, cut inside the run: only the reader finds it.
+         std::vector<std::vector<int32_t>> faces(1000, {0, 1, 2});
+         std::string s = binary_ply({0, 0, 0, 1, 0, 0, 0, 1, 0}, faces);
+         return zstd_of(d, s.substr(0, s.size() - 13 * 400 - 5));
+       }},
       // OBJ
       {"ObjFaceIndexZero", "m.obj", [](auto&) { return obj_with("f 0 1 2\n"); }},
       {"ObjRelativeIndexBeforeFirst", "m.obj", [](auto&) { return obj_with("f -1 -2 -4\n"); }},
@@ -164,6 +200,7 @@ const std::vector<BadInput>& bad_inputs() {
       {"ObjFaceWithTwoCorners", "m.obj", [](auto&) { return obj_with("f 1 2\n"); }},
       {"ObjVertexWithTwoCoordinates", "m.obj", [](auto&) { return std::string("v 0 0\n"); }},
       {"ObjNoVertices", "m.obj", [](auto&) { return std::string("# only a comment\ng group\n"); }},
+      {"ObjNoFaces", "m.obj", [](auto&) { return obj_with("# no f records\n"); }},
       {"ObjBinaryGarbage", "m.obj", [](auto&) { return garbage(20000, 2); }},
       {"ObjLineOver256MiBZstd", "m.obj.zst",
        [](auto& d) {
@@ -189,6 +226,7 @@ const std::vector<BadInput>& bad_inputs() {
       {"OffInfCoordinate", "m.off", [](auto&) { return std::string("OFF\n3 1 0\n0 0 0\ninf 0 0\n0 1 0\n3 0 1 2\n"); }},
       {"OffFaceWithOneVertex", "m.off", [](auto&) { return "OFF\n3 1 0\n" + kAsciiTriangle + "1 0\n"; }},
       {"OffZeroVertices", "m.off", [](auto&) { return std::string("OFF\n0 0 0\n"); }},
+      {"OffZeroFaces", "m.off", [](auto&) { return "OFF\n3 0 0\n" + kAsciiTriangle; }},
       {"OffBinaryGarbage", "m.off", [](auto&) { return "OFF\n" + garbage(3000, 3); }},
       // STL
       {"StlBinaryTooShort", "m.stl", [](auto&) { return garbage(50, 4); }},
@@ -355,6 +393,36 @@ TEST(BadInput, CorruptStoreDirectories) {
   fs::remove_all(dir);
 }
 
+TEST(BadInput, StripAndFaceElementErrorsSayWhereAndWhat) {
+  const fs::path dir = test::temp_dir("bad_strips");
+  struct Case {
+    std::string name, bytes;
+    std::vector<std::string> parts;  // in the one stderr line, besides the file name
+  };
+  const std::string binary = binary_strips({0, 1, 2, 7});
+  const size_t index_byte = binary.find("end_header\n") + 11 + 36 + 4 + 3 * 4;
+  std::vector<std::vector<int32_t>> faces(1000, {0, 1, 2});
+  const std::string block = binary_ply({0, 0, 0, 1, 0, 0, 0, 1, 0}, faces);
+  const std::vector<Case> cases = {
+      {"ascii.ply", ply_list_header("ascii", "tristrips", 1) + kAsciiTriangle + "5 0 1 2 -1 3\n",
+       {"line 13: tristrips 0: item 4: uses vertex 3 of 3"}},
+      {"binary.ply", binary, {"byte " + std::to_string(index_byte) + ": tristrips 0: uses vertex 7 of 3"}},
+      {"polygon.ply", ply_list_header("ascii", "polygon", 1) + kAsciiTriangle + "3 0 1 2\n",
+       {"line 9: no face element", "vertex (3), polygon (1)"}},
+      {"cut.ply.zst", zstd_of(dir, block.substr(0, block.size() - 13 * 400 - 5)),
+       {"byte " + std::to_string(block.size() - 13 * 400 - 5), "unexpected end of file in face 599 of 1000"}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    write_bytes(dir / c.name, c.bytes);
+    const CliResult r = run_cli({"info", (dir / c.name).string()});
+    EXPECT_EQ(r.exit_code, 2) << r.describe();
+    expect_one_line_error(r, (dir / c.name).string());
+    for (const std::string& part : c.parts) EXPECT_NE(r.err.find(part), std::string::npos) << part << " not in " << r.err;
+  }
+  fs::remove_all(dir);
+}
+
 // ---- inputs that must be accepted ----------------------------------------------------------
 
 void expect_accepted(const fs::path& input, const fs::path& out_dir, uint64_t vertices, uint64_t faces) {
@@ -398,6 +466,26 @@ TEST(BadInput, MixedLineEndingsAreAccepted) {
     expect_accepted(dir / name, dir / "out", sphere.vertex_count(), sphere.face_count());
     fs::remove(dir / "out" / "out.ply");
   }
+  fs::remove_all(dir);
+}
+
+TEST(BadInput, StripListsWithoutTrailingRestartAreAccepted) {
+  // A tristrips element with one list per triangle of a sphere: no -1 anywhere, each list's end
+  // ends its strip.
+  const fs::path dir = test::temp_dir("strips_ok");
+  fs::create_directories(dir / "out");
+  const MeshBuffers sphere = make_icosphere(2);
+  std::string ply = "ply\nformat ascii 1.0\nelement vertex " + std::to_string(sphere.vertex_count()) +
+                    "\nproperty float x\nproperty float y\nproperty float z\nelement tristrips " +
+                    std::to_string(sphere.face_count()) + "\nproperty list int int vertex_indices\nend_header\n";
+  for (uint32_t v = 0; v < sphere.vertex_count(); ++v)
+    ply += std::to_string(sphere.positions[3 * v]) + " " + std::to_string(sphere.positions[3 * v + 1]) + " " +
+           std::to_string(sphere.positions[3 * v + 2]) + "\n";
+  for (uint64_t f = 0; f < sphere.face_count(); ++f)
+    ply += "3 " + std::to_string(sphere.triangles[3 * f]) + " " + std::to_string(sphere.triangles[3 * f + 1]) + " " +
+           std::to_string(sphere.triangles[3 * f + 2]) + "\n";
+  write_bytes(dir / "strips.ply", ply);
+  expect_accepted(dir / "strips.ply", dir / "out", sphere.vertex_count(), sphere.face_count());
   fs::remove_all(dir);
 }
 

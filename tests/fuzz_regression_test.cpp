@@ -52,5 +52,17 @@ TEST(FuzzRegressions, EveryKeptInputReadsOrFailsCleanly) {
   EXPECT_GT(replayed, 0u) << "tests/data/fuzz_regressions is empty";
 }
 
+TEST(FuzzRegressions, ZeroFaceSoupStillBuildsAStore) {
+  // ply/zero_faces_adjacency_null_offset.bin found a null offset in the adjacency of a soup
+  // without faces. The readers now reject such files ("no faces"), so the soup is built here.
+  MeshBuffers soup;
+  soup.positions = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 5};
+  StoreBuildOptions options;
+  options.faces_per_chunk = 4;
+  MeshStore store = MeshStore::build(soup.view(), options);
+  EXPECT_EQ(store.view().vertex_count(), 4u);
+  EXPECT_EQ(store.view().face_count(), 0u);
+}
+
 }  // namespace
 }  // namespace streamcvd

@@ -499,6 +499,17 @@ TEST(MeshWriter, StlFacetsCarryUnitNormalsAndZeroForDegenerate) {
   for (int k = 0; k < 3; ++k) EXPECT_EQ(f1[k], 0.0f);
 }
 
+/// The vertices a read hands out, even when the read then fails (a point set: "no faces").
+struct VertexRecorder final : MeshSink {
+  std::vector<float> positions;
+  void begin(const MeshHeaderInfo&) override {}
+  void vertices(std::span<const float> xyz, std::span<const float>) override {
+    positions.insert(positions.end(), xyz.begin(), xyz.end());
+  }
+  void triangles(std::span<const uint32_t>) override {}
+  void end(const ReadStats&) override {}
+};
+
 TEST(MeshWriter, PointSetWithoutFacesIsWrittenExceptToStl) {
   auto dir = test::temp_dir("mw_points");
   RemoveOnExit cleanup{dir};
@@ -506,9 +517,15 @@ TEST(MeshWriter, PointSetWithoutFacesIsWrittenExceptToStl) {
   m.positions = {1, 2, 3, 4, 5, 6};
   for (const char* name : {"p.ply", "p.obj", "p.off"}) {
     write_mesh((dir / name).string(), m.view());
-    MeshBuffers back = read_mesh((dir / name).string());
+    // The readers reject a mesh without faces (useless to every command) after its vertices.
+    VertexRecorder back;
+    try {
+      read_mesh_stream((dir / name).string(), back);
+      ADD_FAILURE() << name << " read without error";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("no faces"), std::string::npos) << e.what();
+    }
     EXPECT_EQ(back.positions, m.positions) << name;
-    EXPECT_EQ(back.face_count(), 0u) << name;
   }
   EXPECT_THROW(write_mesh((dir / "p.stl").string(), m.view()), OutputError);
   EXPECT_FALSE(fs::exists(dir / "p.stl"));

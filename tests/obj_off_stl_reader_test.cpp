@@ -14,14 +14,11 @@
 #include <vector>
 
 #include "core/errors.h"
-#include "streaming/input_stream.h"
 #include "streaming/mesh_io.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
-
-using Reader = MeshBuffers (*)(InputStream&);
 
 void write_bytes(const std::filesystem::path& path, const std::string& bytes) {
   std::ofstream out(path, std::ios::binary);
@@ -50,18 +47,16 @@ const std::filesystem::path& scratch() {
   return dir.path;
 }
 
-MeshBuffers read_file(Reader reader, const std::string& path) {
-  InputStream in(path);
-  return reader(in);
-}
+/// Through the public entry point: every name here has the extension of the format it holds.
+MeshBuffers read_file(const std::string& path) { return read_mesh(path); }
 
 /// Writes `bytes` to `name` and a zstd copy to `name`.zst, reads both and checks they agree.
-MeshBuffers read_bytes(Reader reader, const std::string& name, const std::string& bytes) {
+MeshBuffers read_bytes(const std::string& name, const std::string& bytes) {
   std::string path = (scratch() / name).string();
   write_bytes(path, bytes);
   write_bytes(path + ".zst", zstd_compress(bytes));
-  MeshBuffers plain = read_file(reader, path);
-  MeshBuffers packed = read_file(reader, path + ".zst");
+  MeshBuffers plain = read_file(path);
+  MeshBuffers packed = read_file(path + ".zst");
   EXPECT_EQ(plain.positions, packed.positions) << name;
   EXPECT_EQ(plain.triangles, packed.triangles) << name;
   EXPECT_EQ(plain.polygons_split, packed.polygons_split) << name;
@@ -70,13 +65,13 @@ MeshBuffers read_bytes(Reader reader, const std::string& name, const std::string
 
 /// Expects both the plain and the zstd copy to throw InputError naming the file and containing
 /// `fragment` (the plain copy's message only; zstd offsets may differ).
-void expect_error(Reader reader, const std::string& name, const std::string& bytes, const std::string& fragment) {
+void expect_error(const std::string& name, const std::string& bytes, const std::string& fragment) {
   std::string path = (scratch() / name).string();
   write_bytes(path, bytes);
   write_bytes(path + ".zst", zstd_compress(bytes));
   for (const std::string& p : {path, path + ".zst"}) {
     try {
-      read_file(reader, p);
+      read_file(p);
       ADD_FAILURE() << p << ": no InputError";
     } catch (const InputError& e) {
       std::string what = e.what();
@@ -100,7 +95,7 @@ TEST(ObjReader, CornerFormsAndIgnoredRecords) {
       "v 0 0 0\nv 1.5 0 0 1.0\nv 0 -2.25 0 0.5 0.5 0.5\nv +0 0 1e3 # trailing comment\n"
       "vt 0 0\nvt 1 0\nvt 0 1\nvt 1 1\nvn 0 0 1\nvn 0 0 1\nvn 0 0 1\nvn 0 0 1\nvp 0.5\n"
       "f 1 2 3\nf 1/1 2/2 4/4\nf 1/1/1 3/3/3 4/4/4\nf\t2//2  3//3 4//4  \nl 1 2\np 3\n";
-  MeshBuffers m = read_bytes(read_obj, "forms.obj", obj);
+  MeshBuffers m = read_bytes("forms.obj", obj);
   EXPECT_EQ(m.positions, floats({0, 0, 0, 1.5f, 0, 0, 0, -2.25f, 0, 0, 0, 1000}));
   EXPECT_EQ(m.triangles, indices({0, 1, 2, 0, 1, 3, 0, 2, 3, 1, 2, 3}));
   EXPECT_EQ(m.polygons_split, 0u);
@@ -108,14 +103,14 @@ TEST(ObjReader, CornerFormsAndIgnoredRecords) {
 
 TEST(ObjReader, NumberSyntaxAndVertexExtras) {
   const std::string obj = "v .5 1. -.25E+1\nv\t1e-2 +3 -0 1 0.2 0.3 0.4\nv 0 1 0\nf +1 2 3\n";
-  MeshBuffers m = read_bytes(read_obj, "numbers.obj", obj);
+  MeshBuffers m = read_bytes("numbers.obj", obj);
   EXPECT_EQ(m.positions, floats({0.5f, 1, -2.5f, 1e-2f, 3, -0.0f, 0, 1, 0}));
   EXPECT_EQ(m.triangles, indices({0, 1, 2}));
 }
 
 TEST(ObjReader, NegativeIndicesCountBackFromLastDefinedVertex) {
   const std::string obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 0 0 1\nf -1/-1/-1 -2//-2 -4\n";
-  MeshBuffers m = read_bytes(read_obj, "negative.obj", obj);
+  MeshBuffers m = read_bytes("negative.obj", obj);
   EXPECT_EQ(m.vertex_count(), 4u);
   EXPECT_EQ(m.triangles, indices({0, 1, 2, 3, 2, 0}));
 }
@@ -123,7 +118,7 @@ TEST(ObjReader, NegativeIndicesCountBackFromLastDefinedVertex) {
 TEST(ObjReader, PolygonsAreFanTriangulated) {
   const std::string obj =
       "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv -1 0.5 0\nf 1 2 3 4\nf 1 4 5\nf 5 4 3 2 1\n";
-  MeshBuffers m = read_bytes(read_obj, "poly.obj", obj);
+  MeshBuffers m = read_bytes("poly.obj", obj);
   EXPECT_EQ(m.triangles, indices({0, 1, 2, 0, 2, 3, 0, 3, 4, 4, 3, 2, 4, 2, 1, 4, 1, 0}));
   EXPECT_EQ(m.polygons_split, 2u);
 }
@@ -131,26 +126,26 @@ TEST(ObjReader, PolygonsAreFanTriangulated) {
 TEST(ObjReader, ContinuationCrlfAndForwardReferences) {
   // A face may name a vertex defined later (positive indices are checked against the total).
   const std::string obj = "f 1 2 \\\r\n 3\r\nv 0 0 0\r\nv 1 \\\r\n0 0\r\nv 0 1 0";
-  MeshBuffers m = read_bytes(read_obj, "continued.obj", obj);
+  MeshBuffers m = read_bytes("continued.obj", obj);
   EXPECT_EQ(m.positions, floats({0, 0, 0, 1, 0, 0, 0, 1, 0}));
   EXPECT_EQ(m.triangles, indices({0, 1, 2}));
 }
 
 TEST(ObjReader, MalformedInputsThrowNamingFileAndLine) {
   const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
-  expect_error(read_obj, "zero.obj", tri + "f 0 1 2\n", "line 4: face index 0");
-  expect_error(read_obj, "range.obj", tri + "f 1 2 4\nf 1 2 3\n", "line 4: face index 4 is out of range");
-  expect_error(read_obj, "relative.obj", tri + "f -1 -2 -4\n", "line 4: relative face index -4");
-  expect_error(read_obj, "two.obj", tri + "f 1 2\n", "line 4: face with 2 corners");
-  expect_error(read_obj, "badnum.obj", "v 0 0 0\nv 1 x 0\n", "line 2: bad number 'x'");
-  expect_error(read_obj, "nan.obj", "v 0 nan 0\n", "line 1: coordinate is not finite");
-  expect_error(read_obj, "inf.obj", "v 0 0 -inf\n", "coordinate is not finite");
-  expect_error(read_obj, "overflow.obj", "v 0 0 1e39\n", "coordinate is not finite");
-  expect_error(read_obj, "short.obj", "v 0 0\n", "vertex needs 3 coordinates");
-  expect_error(read_obj, "badidx.obj", tri + "f 1 a 3\n", "bad face index 'a'");
-  expect_error(read_obj, "badidx2.obj", tri + "f 1 2x 3\n", "bad face index '2x'");
-  expect_error(read_obj, "hugeidx.obj", tri + "f 1 2 99999999999999999999\n", "out of range");
-  expect_error(read_obj, "empty.obj", "# nothing\ng x\n", "no vertices");
+  expect_error("zero.obj", tri + "f 0 1 2\n", "line 4: face index 0");
+  expect_error("range.obj", tri + "f 1 2 4\nf 1 2 3\n", "line 4: face index 4 is out of range");
+  expect_error("relative.obj", tri + "f -1 -2 -4\n", "line 4: relative face index -4");
+  expect_error("two.obj", tri + "f 1 2\n", "line 4: face with 2 corners");
+  expect_error("badnum.obj", "v 0 0 0\nv 1 x 0\n", "line 2: bad number 'x'");
+  expect_error("nan.obj", "v 0 nan 0\n", "line 1: coordinate is not finite");
+  expect_error("inf.obj", "v 0 0 -inf\n", "coordinate is not finite");
+  expect_error("overflow.obj", "v 0 0 1e39\n", "coordinate is not finite");
+  expect_error("short.obj", "v 0 0\n", "vertex needs 3 coordinates");
+  expect_error("badidx.obj", tri + "f 1 a 3\n", "bad face index 'a'");
+  expect_error("badidx2.obj", tri + "f 1 2x 3\n", "bad face index '2x'");
+  expect_error("hugeidx.obj", tri + "f 1 2 99999999999999999999\n", "out of range");
+  expect_error("empty.obj", "# nothing\ng x\n", "no vertices");
 }
 
 // ---------------------------------------------------------------------------------------- OFF
@@ -159,14 +154,14 @@ TEST(OffReader, CountsOnKeywordLineAndCommentsAnywhere) {
   const std::string off =
       "# leading comment\n\nOFF 4 2 0 # counts here\n# between\n0 0 0\n1 0 0 # end of line\n\n0 1 0\n0 0 1\n"
       "3 0 1 2\n# face comment\n3 0 2 3\n";
-  MeshBuffers m = read_bytes(read_off, "keyline.off", off);
+  MeshBuffers m = read_bytes("keyline.off", off);
   EXPECT_EQ(m.positions, floats({0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}));
   EXPECT_EQ(m.triangles, indices({0, 1, 2, 0, 2, 3}));
 }
 
 TEST(OffReader, CountsOnNextLineWithoutEdgeCount) {
   const std::string off = "OFF\n# comment\n3 1\n0.5 -0.25 2e-3\n+1 0 0\n0 1 0\n3 2 1 0\n";
-  MeshBuffers m = read_bytes(read_off, "nextline.off", off);
+  MeshBuffers m = read_bytes("nextline.off", off);
   EXPECT_EQ(m.positions, floats({0.5f, -0.25f, 2e-3f, 1, 0, 0, 0, 1, 0}));
   EXPECT_EQ(m.triangles, indices({2, 1, 0}));
 }
@@ -187,7 +182,7 @@ TEST(OffReader, ColourNormalAndTextureVariantsSkipExtraValues) {
   int i = 0;
   for (const std::string& v : verts) {
     SCOPED_TRACE(v);
-    MeshBuffers m = read_bytes(read_off, "variant" + std::to_string(i++) + ".off", v + faces);
+    MeshBuffers m = read_bytes("variant" + std::to_string(i++) + ".off", v + faces);
     EXPECT_EQ(m.positions, floats({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}));
     EXPECT_EQ(m.triangles, indices({0, 1, 2, 0, 2, 3, 0, 1, 2}));
     EXPECT_EQ(m.polygons_split, 1u);
@@ -196,22 +191,22 @@ TEST(OffReader, ColourNormalAndTextureVariantsSkipExtraValues) {
 
 TEST(OffReader, MalformedInputsThrowNamingFileAndLine) {
   const std::string tri = "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n";
-  expect_error(read_off, "binary.off", "OFF BINARY\n3 1 0\n", "binary OFF is not supported");
-  expect_error(read_off, "keyword.off", "OFFX\n3 1 0\n", "unknown OFF keyword");
-  expect_error(read_off, "notoff.off", "ply\nformat ascii 1.0\n", "not an OFF file");
-  expect_error(read_off, "fewverts.off", "OFF\n5 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "vertices");
-  expect_error(read_off, "fewfaces.off", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "file ends after 1 of 2 faces");
-  expect_error(read_off, "range.off", tri + "3 0 1 3\n", "line 6: vertex index 3 is out of range");
-  expect_error(read_off, "negative.off", tri + "3 0 -1 2\n", "bad vertex index '-1'");
-  expect_error(read_off, "two.off", tri + "2 0 1\n", "face with 2 corners");
-  expect_error(read_off, "nan.off", "OFF\n3 1 0\n0 0 0\n1 NaN 0\n0 1 0\n3 0 1 2\n", "line 4: coordinate is not finite");
-  expect_error(read_off, "badnum.off", "OFF\n3 1 0\n0 0 0\n1 0,5 0\n0 1 0\n3 0 1 2\n", "bad number '0,5'");
-  expect_error(read_off, "badcount.off", "OFF\nthree 1 0\n", "bad vertex count");
-  expect_error(read_off, "huge.off", "OFF\n4000000000 1 0\n0 0 0\n", "file ends after 1 of 4000000000 vertices");
-  expect_error(read_off, "toohuge.off", "OFF\n99999999999 1 0\n0 0 0\n", "more than 4294967295 vertices");
-  expect_error(read_off, "novertex.off", "OFF\n0 0 0\n", "0 vertices");
-  expect_error(read_off, "comments.off", "# only\n\n# comments\n", "no OFF header");
-  expect_error(read_off, "dim.off", "nOFF 4\n3 1 0\n", "only 3-dimensional");
+  expect_error("binary.off", "OFF BINARY\n3 1 0\n", "binary OFF is not supported");
+  expect_error("keyword.off", "OFFX\n3 1 0\n", "unknown OFF keyword");
+  expect_error("notoff.off", "ply\nformat ascii 1.0\n", "not an OFF file");
+  expect_error("fewverts.off", "OFF\n5 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "vertices");
+  expect_error("fewfaces.off", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "file ends after 1 of 2 faces");
+  expect_error("range.off", tri + "3 0 1 3\n", "line 6: vertex index 3 is out of range");
+  expect_error("negative.off", tri + "3 0 -1 2\n", "bad vertex index '-1'");
+  expect_error("two.off", tri + "2 0 1\n", "face with 2 corners");
+  expect_error("nan.off", "OFF\n3 1 0\n0 0 0\n1 NaN 0\n0 1 0\n3 0 1 2\n", "line 4: coordinate is not finite");
+  expect_error("badnum.off", "OFF\n3 1 0\n0 0 0\n1 0,5 0\n0 1 0\n3 0 1 2\n", "bad number '0,5'");
+  expect_error("badcount.off", "OFF\nthree 1 0\n", "bad vertex count");
+  expect_error("huge.off", "OFF\n4000000000 1 0\n0 0 0\n", "file ends after 1 of 4000000000 vertices");
+  expect_error("toohuge.off", "OFF\n99999999999 1 0\n0 0 0\n", "more than 4294967295 vertices");
+  expect_error("novertex.off", "OFF\n0 0 0\n", "0 vertices");
+  expect_error("comments.off", "# only\n\n# comments\n", "no OFF header");
+  expect_error("dim.off", "nOFF 4\n3 1 0\n", "only 3-dimensional");
 }
 
 // ---------------------------------------------------------------------------------------- STL
@@ -245,7 +240,7 @@ TEST(StlReader, AsciiMergesIdenticalCoordinatesInOrderOfFirstAppearance) {
       "facet normal nan nan nan\nouter loop\nvertex 1.0 0 0\nvertex 1 1 0\nvertex 0.0 1e0 0\nendloop\nendfacet\n"
       "facet normal 0 0 1\nouter loop\nvertex -0.0 0 -0\nvertex 0 1 0\nvertex 0.5 0.5 2\nendloop\nendfacet\n"
       "endsolid test\n";
-  MeshBuffers m = read_bytes(read_stl, "ascii.stl", stl);
+  MeshBuffers m = read_bytes("ascii.stl", stl);
   EXPECT_EQ(m.positions, floats({0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 0.5f, 0.5f, 2}));
   EXPECT_EQ(m.triangles, indices({0, 1, 2, 1, 3, 2, 0, 2, 4}));
   EXPECT_FALSE(std::signbit(m.positions[0]));
@@ -256,7 +251,7 @@ TEST(StlReader, AsciiToleratesWhitespaceCaseAndSeveralSolids) {
       "solid\r\nfacet normal 0 0 1 outer loop vertex 0 0 0 vertex 1 0 0 vertex 0 1 0 endloop endfacet\r\n"
       "endsolid\r\n\r\nSOLID second part\n\tFACET NORMAL 0 0 1\n\t\tOUTER LOOP\n"
       "VERTEX 1 0 0\nVERTEX\t1 1 0\n VERTEX 0 1 0 \n ENDLOOP\n ENDFACET\nENDSOLID second part";
-  MeshBuffers m = read_bytes(read_stl, "loose.stl", stl);
+  MeshBuffers m = read_bytes("loose.stl", stl);
   EXPECT_EQ(m.positions, floats({0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0}));
   EXPECT_EQ(m.triangles, indices({0, 1, 2, 1, 3, 2}));
 }
@@ -264,12 +259,12 @@ TEST(StlReader, AsciiToleratesWhitespaceCaseAndSeveralSolids) {
 TEST(StlReader, BinaryEvenWhenTheHeaderStartsWithSolid) {
   for (const std::string header : {"binary writer", "solid written by a binary writer\nfacet"}) {
     SCOPED_TRACE(header);
-    MeshBuffers m = read_bytes(read_stl, "binary.stl", binary_stl(header, kCorners, 3));
+    MeshBuffers m = read_bytes("binary.stl", binary_stl(header, kCorners, 3));
     EXPECT_EQ(m.positions, floats({0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 0.5f, 0.5f, 2}));
     EXPECT_EQ(m.triangles, indices({0, 1, 2, 1, 3, 2, 0, 2, 4}));
   }
   // Bytes after the declared triangles are ignored.
-  MeshBuffers m = read_bytes(read_stl, "trailing.stl", binary_stl("solid x", kCorners, 2, "garbage!"));
+  MeshBuffers m = read_bytes("trailing.stl", binary_stl("solid x", kCorners, 2, "garbage!"));
   EXPECT_EQ(m.triangles, indices({0, 1, 2, 1, 3, 2}));
 }
 
@@ -283,7 +278,7 @@ TEST(StlReader, BinaryGridMergesEveryShared) {
       push(i, j), push(i + 1, j), push(i + 1, j + 1);
       push(i, j), push(i + 1, j + 1), push(i, j + 1);
     }
-  MeshBuffers m = read_bytes(read_stl, "grid.stl", binary_stl("grid", corners, 2 * n * n));
+  MeshBuffers m = read_bytes("grid.stl", binary_stl("grid", corners, 2 * n * n));
   ASSERT_EQ(m.vertex_count(), uint32_t((n + 1) * (n + 1)));
   ASSERT_EQ(m.face_count(), uint64_t(2 * n * n));
   for (size_t k = 0; k < m.triangles.size(); ++k)
@@ -294,24 +289,24 @@ TEST(StlReader, MalformedInputsThrowNamingFileAndOffset) {
   const std::string facet = "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n";
   std::string truncated = binary_stl("x", kCorners, 3);
   truncated.resize(truncated.size() - 10);
-  expect_error(read_stl, "truncated.stl", truncated, "byte 80: truncated binary STL: header declares 3 triangles");
-  expect_error(read_stl, "truncsolid.stl", binary_stl("solid x", kCorners, 4), "truncated binary STL");
-  expect_error(read_stl, "short.stl", std::string(40, 'x'), "file too short for a binary STL");
-  expect_error(read_stl, "zero.stl", binary_stl("x", {}, 0), "declares 0 triangles");
+  expect_error("truncated.stl", truncated, "byte 80: truncated binary STL: header declares 3 triangles");
+  expect_error("truncsolid.stl", binary_stl("solid x", kCorners, 4), "truncated binary STL");
+  expect_error("short.stl", std::string(40, 'x'), "file too short for a binary STL");
+  expect_error("zero.stl", binary_stl("x", {}, 0), "declares 0 triangles");
   std::vector<float> bad = kCorners;
   bad[4] = std::nanf("");
-  expect_error(read_stl, "nanbin.stl", binary_stl("x", bad, 3), "byte 112: coordinate is not finite in triangle 0");
-  expect_error(read_stl, "twovert.stl",
+  expect_error("nanbin.stl", binary_stl("x", bad, 3), "byte 112: coordinate is not finite in triangle 0");
+  expect_error("twovert.stl",
                "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid\n",
                "line 7: facet with 2 vertices");
-  expect_error(read_stl, "endsinside.stl", "solid a\n" + facet + "facet normal 0 0 1\nouter loop\nvertex 0 0 0\n",
+  expect_error("endsinside.stl", "solid a\n" + facet + "facet normal 0 0 1\nouter loop\nvertex 0 0 0\n",
                "file ends inside a facet");
-  expect_error(read_stl, "nanascii.stl", "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 inf 0\n",
+  expect_error("nanascii.stl", "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 inf 0\n",
                "line 4: coordinate is not finite");
-  expect_error(read_stl, "badnum.stl", "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 1..0 0\n", "line 4: bad number");
-  expect_error(read_stl, "token.stl", "solid a\n" + facet + "fact normal 0 0 1\n", "line 9: unexpected 'fact'");
-  expect_error(read_stl, "outside.stl", "solid a\nvertex 0 0 0\n", "unexpected 'vertex'");
-  expect_error(read_stl, "empty.stl", "solid a\nendsolid a\n", "no facets");
+  expect_error("badnum.stl", "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 1..0 0\n", "line 4: bad number");
+  expect_error("token.stl", "solid a\n" + facet + "fact normal 0 0 1\n", "line 9: unexpected 'fact'");
+  expect_error("outside.stl", "solid a\nvertex 0 0 0\n", "unexpected 'vertex'");
+  expect_error("empty.stl", "solid a\nendsolid a\n", "no facets");
 }
 
 // ------------------------------------------------------------------------------ shared meshes
@@ -319,7 +314,7 @@ TEST(StlReader, MalformedInputsThrowNamingFileAndOffset) {
 TEST(StlReader, GmshAneurysmHasManifestCounts) {
   auto path = test::shared_data_path("gmsh_aneurysm.stl");
   if (!path) GTEST_SKIP() << "shared data absent";
-  MeshBuffers m = read_file(read_stl, *path);
+  MeshBuffers m = read_file(*path);
   EXPECT_EQ(m.vertex_count(), 10204u);
   EXPECT_EQ(m.face_count(), 20294u);
 }
@@ -339,7 +334,7 @@ TEST(ObjOffReader, SharedMeshesMatchManifest) {
     auto path = test::shared_data_path(cols[1]);
     if (!path) continue;
     SCOPED_TRACE(*path);
-    MeshBuffers m = read_file(cols[2] == "OBJ" ? read_obj : read_off, *path);
+    MeshBuffers m = read_file(*path);
     EXPECT_EQ(m.vertex_count(), std::stoull(cols[3]));
     EXPECT_EQ(m.face_count(), std::stoull(cols[4]));
     ++checked;
@@ -349,7 +344,7 @@ TEST(ObjOffReader, SharedMeshesMatchManifest) {
 
 TEST(ObjOffReader, BundledZstdCopiesMatchManifest) {
   for (auto [name, v, f] : {std::tuple{"cgal_fandisk.off.zst", 6475u, 12946u}, {"fertility.off.zst", 4494u, 9000u}}) {
-    MeshBuffers m = read_file(read_off, test::data_path(name));
+    MeshBuffers m = read_file(test::data_path(name));
     EXPECT_EQ(m.vertex_count(), v) << name;
     EXPECT_EQ(m.face_count(), f) << name;
   }

@@ -14,77 +14,19 @@
 #include <vector>
 
 #include "core/errors.h"
-#include "streaming/input_stream.h"
 #include "streaming/mesh_io.h"
+#include "tests/ply_builder.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
 
-enum class Enc { Ascii, Le, Be };
-constexpr Enc kAllEncodings[] = {Enc::Ascii, Enc::Le, Enc::Be};
-const char* enc_name(Enc e) {
-  return e == Enc::Ascii ? "ascii" : e == Enc::Le ? "binary_little_endian" : "binary_big_endian";
-}
-
-// A property: scalar when count_type is empty, else a list.
-struct Prop {
-  std::string type, name, count_type;
-};
-// One element: its properties and, per record, the values of each property (lists: all items).
-struct Elem {
-  std::string name;
-  std::vector<Prop> props;
-  std::vector<std::vector<std::vector<double>>> records;
-};
-
-template <class T>
-void put_bytes(std::string& out, Enc enc, T v) {
-  char b[sizeof(T)];
-  std::memcpy(b, &v, sizeof(T));
-  if ((enc == Enc::Be) == (std::endian::native == std::endian::little)) std::reverse(b, b + sizeof(T));
-  out.append(b, sizeof(T));
-}
-
-// Appends one value of PLY type `type`; ascii floats use the shortest round-trip form.
-void put(std::string& out, Enc enc, const std::string& type, double v) {
-  const bool f32 = type == "float" || type == "float32", f64 = type == "double" || type == "float64";
-  if (enc == Enc::Ascii) {
-    char buf[64];
-    auto r = f32 ? std::to_chars(buf, buf + 64, float(v)) : f64 ? std::to_chars(buf, buf + 64, v)
-                                                               : std::to_chars(buf, buf + 64, int64_t(v));
-    out.append(buf, r.ptr);
-    out += ' ';
-  } else if (f32) put_bytes(out, enc, float(v));
-  else if (f64) put_bytes(out, enc, v);
-  else if (type == "char" || type == "int8") put_bytes(out, enc, int8_t(int64_t(v)));  // via int64: wraps, no UB
-  else if (type == "uchar" || type == "uint8") put_bytes(out, enc, uint8_t(int64_t(v)));
-  else if (type == "short" || type == "int16") put_bytes(out, enc, int16_t(int64_t(v)));
-  else if (type == "ushort" || type == "uint16") put_bytes(out, enc, uint16_t(int64_t(v)));
-  else if (type == "int" || type == "int32") put_bytes(out, enc, int32_t(int64_t(v)));
-  else if (type == "uint" || type == "uint32") put_bytes(out, enc, uint32_t(int64_t(v)));
-  else ADD_FAILURE() << "bad test type " << type;
-}
-
-std::string build_ply(Enc enc, const std::vector<Elem>& elems, const std::string& extra_header = "") {
-  std::string s = std::string("ply\nformat ") + enc_name(enc) + " 1.0\n" + extra_header;
-  for (const Elem& e : elems) {
-    s += "element " + e.name + " " + std::to_string(e.records.size()) + "\n";
-    for (const Prop& p : e.props)
-      s += p.count_type.empty() ? "property " + p.type + " " + p.name + "\n"
-                                : "property list " + p.count_type + " " + p.type + " " + p.name + "\n";
-  }
-  s += "end_header\n";
-  for (const Elem& e : elems)
-    for (const auto& rec : e.records) {
-      for (size_t k = 0; k < e.props.size(); ++k) {
-        if (!e.props[k].count_type.empty()) put(s, enc, e.props[k].count_type, double(rec[k].size()));
-        for (double v : rec[k]) put(s, enc, e.props[k].type, v);
-      }
-      if (enc == Enc::Ascii) s.back() = '\n';
-    }
-  return s;
-}
+using test::build_ply;
+using test::Elem;
+using test::Enc;
+using test::enc_name;
+using test::kAllEncodings;
+using test::Prop;
 
 // Vertex element: x, y, z from `pos`, every other property filled with small made-up values.
 Elem vertex_element(const std::vector<double>& pos, const std::vector<Prop>& props) {
@@ -179,8 +121,8 @@ TEST(PlyReader, FloatVerticesWithExtraPropertiesInEveryEncoding) {
                                   "comment made by ply_reader_test\nobj_info nothing\n");
     std::string path = write_file(dir, std::string(enc_name(enc)) + ".ply", bytes);
     expect_reference(read_mesh(path), as_floats(kPos));
-    InputStream in(path);
-    expect_reference(read_ply(in), as_floats(kPos));
+    // Read from standard-input-like content too: no extension, the format sniffed.
+    expect_reference(read_mesh(write_file(dir, std::string(enc_name(enc)) + ".mesh", bytes)), as_floats(kPos));
   }
 }
 
@@ -302,12 +244,16 @@ TEST(PlyReader, FacesBeforeVertices) {
   }
 }
 
-TEST(PlyReader, PointCloudWithoutFaces) {
+TEST(PlyReader, PointCloudWithoutFacesIsRejected) {
+  // No element to read faces from, or an empty one: every command needs triangles, so the read
+  // fails at once, naming what the file has.
   auto dir = test::temp_dir("ply_points");
+  const Elem points = vertex_element(kPos, {{"float", "x", ""}, {"float", "y", ""}, {"float", "z", ""}});
   for (Enc enc : kAllEncodings) {
-    MeshBuffers m = read_mesh(write_file(dir, "p.ply", build_ply(enc, {vertex_element(kPos, {{"float", "x", ""}, {"float", "y", ""}, {"float", "z", ""}})})));
-    EXPECT_EQ(m.vertex_count(), 6u);
-    EXPECT_EQ(m.face_count(), 0u);
+    SCOPED_TRACE(enc_name(enc));
+    expect_error(write_file(dir, "p.ply", build_ply(enc, {points})), {"line 7", "no face element", "vertex (6)"});
+    expect_error(write_file(dir, "e.ply", build_ply(enc, {points, face_element({}, {{"int", "vertex_indices", "uchar"}})})),
+                 {"no faces", "6 vertices"});
   }
 }
 
@@ -414,9 +360,10 @@ TEST(PlyReader, BinaryBodyErrorsNameTheByte) {
 TEST(PlyReader, HugeCountsFailFastWithoutAllocating) {
   auto dir = test::temp_dir("ply_huge");
   const std::string head = "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\n"
-                           "property float y\nproperty float z\nend_header\n";
+                           "property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                           "end_header\n";
   std::string small = head + std::string(24, '\0');
-  ASSERT_LT(small.size(), 200u);
+  ASSERT_LT(small.size(), 250u);
   expect_error(write_file(dir, "huge.ply", small), {"byte " + std::to_string(head.size()), "header counts need"});
   // Compressed: no exact size bound before reading, so the reader must stop at the real end.
   expect_error(write_file(dir, "huge.ply.zst", zstd_compress(small)), {"unexpected end of file", "vertex 2 of 4000000000"});

@@ -1,0 +1,110 @@
+// Internal to the PLY reader (G. Turk, "The PLY polygon file format", 1994): the parsed header
+// that the header parser (ply_reader.cpp) hands to the body readers (ply_binary.cpp,
+// ply_ascii.cpp), each property already told what to become, and the triangle-strip decoder
+// both body readers share.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "streaming/block_emitter.h"
+#include "streaming/input_stream.h"
+#include "streaming/mesh_reader.h"
+
+namespace streamcvd::ply {
+
+enum class Encoding { Ascii, BinaryLittle, BinaryBig };
+using Scalar = ScalarType;
+
+inline size_t scalar_size(Scalar t) {
+  constexpr size_t kSize[] = {1, 1, 2, 2, 4, 4, 4, 8};
+  return kSize[static_cast<int>(t)];
+}
+inline bool is_integer(Scalar t) { return t != Scalar::F32 && t != Scalar::F64; }
+
+/// What the body reader does with a property.
+enum class Use : uint8_t { Skip, X, Y, Z, Attribute, Corners };
+
+struct Property {
+  std::string name;
+  Scalar type = Scalar::F32;  ///< value type; for a list, the item type
+  bool is_list = false;
+  Scalar count_type = Scalar::U8;
+  Use use = Use::Skip;
+  uint32_t slot = 0;  ///< Use::Attribute: its column in the attribute row
+};
+
+/// What the body reader does with an element: `face` lists are polygons, `tristrips` lists are
+/// triangle strips; anything else is skipped.
+enum class Role : uint8_t { Skip, Vertices, Faces, Strips };
+
+struct Element {
+  std::string name;
+  uint64_t count = 0;
+  std::vector<Property> props;
+  bool fixed = true;        ///< no list property: every record has record_bytes bytes
+  size_t record_bytes = 0;  ///< binary: scalars + list counts (= the record size when fixed)
+  Role role = Role::Skip;
+};
+
+struct Header {
+  Encoding encoding = Encoding::Ascii;
+  std::vector<Element> elements;
+  uint32_t vertex_count = 0;  ///< records of the vertex element: every index must be below it
+  size_t last_needed = 0;     ///< elements after this one are never read
+};
+
+/// Parses the header up to "end_header", marking vertex attributes selected by `options`, and
+/// fills in out.header(). Throws InputError "<file>: line N: ..." for a malformed header, one
+/// without vertices, or one with no element readable as faces (naming the elements found).
+Header parse_header(InputStream& in, const ReadOptions& options, BlockEmitter& out);
+/// Fails fast when the header promises more records than the rest of an uncompressed file can
+/// hold (e.g. "element vertex 4000000000" in a 100-byte file), before reading the body.
+void check_counts_fit(InputStream& in, const Header& h);
+
+/// The body readers: every element up to h.last_needed, in file order, into `out`.
+void read_binary_body(InputStream& in, const Header& h, BlockEmitter& out);
+void read_ascii_body(InputStream& in, const Header& h, BlockEmitter& out);
+
+/// Why corner index `v` is not a vertex id below `nv` (the body readers add the position).
+std::string index_problem(int64_t v, uint32_t nv);
+
+/// A strip index that restarts the strip: -1, or -1 stored as a uint32 (0xFFFFFFFF is never a
+/// vertex id: ids are below 2^32-1).
+inline bool is_strip_restart(int64_t v) { return v == -1 || v == 0xFFFFFFFF; }
+
+/// Decodes the index lists of a `tristrips` element: -1 restarts the strip (so does the end of a
+/// list); within a strip s, triangle i is (s[i], s[i+1], s[i+2]) for even i and
+/// (s[i+1], s[i], s[i+2]) for odd i, so that all share one orientation. Triangles with a
+/// repeated index (the joins between strips) are dropped and counted.
+class StripDecoder {
+ public:
+  explicit StripDecoder(BlockEmitter& out) : out_(out) {}
+  /// Next index of the strip, already checked to be a vertex id.
+  void add(uint32_t v) {
+    if (have_ < 2) {
+      (have_ == 0 ? a_ : b_) = v;
+      odd_ = false;
+      ++have_;
+      return;
+    }
+    if (a_ == b_ || b_ == v || a_ == v) ++out_.stats().strip_triangles_dropped;
+    else if (odd_) out_.add_triangle(b_, a_, v);
+    else out_.add_triangle(a_, b_, v);
+    a_ = b_;
+    b_ = v;
+    odd_ = !odd_;
+  }
+  /// A -1 in the list, or the list's end.
+  void restart() { have_ = 0; }
+
+ private:
+  BlockEmitter& out_;
+  uint32_t a_ = 0, b_ = 0;  // the last two indices of the strip
+  uint32_t have_ = 0;       // how many of them the current strip has (0, 1 or 2)
+  bool odd_ = false;        // parity of the next triangle within the strip
+};
+
+}  // namespace streamcvd::ply

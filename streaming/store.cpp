@@ -22,6 +22,7 @@
 
 #include "core/errors.h"
 #include "streaming/output_file.h"
+#include "streaming/pipelined_sink.h"
 #include "streaming/store_writer.h"
 
 namespace streamcvd {
@@ -89,9 +90,9 @@ class MemoryOutputs final : public StoreOutputs {
   void read_back(const char* name, uint64_t offset, void* dst, size_t n) override {
     std::memcpy(dst, arrays_.at(name).data().data() + offset, n);
   }
-  std::vector<std::byte> take(const char* name) {
+  DefaultInitVector<std::byte> take(const char* name) {
     auto it = arrays_.find(name);
-    return it == arrays_.end() ? std::vector<std::byte>() : std::move(it->second.data());
+    return it == arrays_.end() ? DefaultInitVector<std::byte>() : std::move(it->second.data());
   }
 
  private:
@@ -103,14 +104,15 @@ class MemoryOutputs final : public StoreOutputs {
 // fails in its header or vertices leaves an existing store untouched.
 class DirectoryOutputs final : public StoreOutputs {
  public:
-  explicit DirectoryOutputs(std::string directory) : directory_(std::move(directory)) {}
+  DirectoryOutputs(std::string directory, uint32_t blocks_in_flight)
+      : directory_(std::move(directory)), in_flight_(blocks_in_flight) {}
   ArrayOutput& array(const char* name) override { return stream(name); }
   void read_back(const char* name, uint64_t offset, void* dst, size_t n) override {
     stream(name).read_back(offset, dst, n);
   }
   StoreArrayStream& stream(const char* name) {
     auto it = streams_.find(name);
-    if (it == streams_.end()) it = streams_.emplace(name, &writer().stream(name)).first;
+    if (it == streams_.end()) it = streams_.emplace(name, &writer().stream(name, in_flight_)).first;
     return *it->second;
   }
   StoreDirectoryWriter& writer() {
@@ -120,6 +122,7 @@ class DirectoryOutputs final : public StoreOutputs {
 
  private:
   std::string directory_;
+  uint32_t in_flight_;
   std::optional<StoreDirectoryWriter> writer_;
   std::map<std::string, StoreArrayStream*> streams_;
 };
@@ -129,7 +132,7 @@ class DirectoryOutputs final : public StoreOutputs {
 // behind whatever ends the process.
 class ScratchOutputs final : public StoreOutputs {
  public:
-  explicit ScratchOutputs(std::string folder) : folder_(std::move(folder)) {}
+  ScratchOutputs(std::string folder, uint32_t blocks_in_flight) : folder_(std::move(folder)), in_flight_(blocks_in_flight) {}
   ArrayOutput& array(const char* name) override { return stream(name); }
   void read_back(const char* name, uint64_t offset, void* dst, size_t n) override {
     stream(name).read_back(offset, dst, n);
@@ -137,13 +140,15 @@ class ScratchOutputs final : public StoreOutputs {
   StoreArrayStream& stream(const std::string& name) {
     auto it = streams_.find(name);
     if (it == streams_.end())
-      it = streams_.emplace(name, std::make_unique<StoreArrayStream>(folder_ + "/" + name, /*scratch=*/true)).first;
+      it = streams_.emplace(name, std::make_unique<StoreArrayStream>(folder_ + "/" + name, /*scratch=*/true, in_flight_))
+               .first;
     return *it->second;
   }
   const std::string& folder() const { return folder_; }
 
  private:
   std::string folder_;
+  uint32_t in_flight_;
   std::map<std::string, std::unique_ptr<StoreArrayStream>> streams_;
 };
 
@@ -154,7 +159,7 @@ class AutoOutputs final : public StoreOutputs {
   AutoOutputs(uint64_t memory_limit, std::string folder) : limit_(memory_limit), folder_(std::move(folder)) {}
   void plan(uint64_t vertices, uint64_t faces) override {
     const uint64_t bytes = 52 * faces + 33 * vertices;  // the store's size, 52 B/face + 33 B/vertex
-    if (limit_ > 0 && bytes > limit_ / 2) scratch_.emplace(folder_);
+    if (limit_ > 0 && bytes > limit_ / 2) scratch_.emplace(folder_, stream_blocks_in_flight(limit_));
   }
   ArrayOutput& array(const char* name) override { return out().array(name); }
   void expect(const char* name, uint64_t bytes) override { out().expect(name, bytes); }
@@ -192,7 +197,9 @@ void stream_file(const std::string& input, StoreBuilder& builder, const ReadOpti
   ReadOptions options = read;
   if (progress && !options.progress)
     options.progress = [&](uint64_t bytes, uint64_t total) { progress({"read", bytes, total}); };
-  read_mesh_stream(input, builder, options);
+  // The reader parses on this thread while the builder consumes the previous block on another.
+  PipelinedSink pipeline(builder);
+  read_mesh_stream(input, pipeline, options);
 }
 
 }  // namespace
@@ -202,7 +209,7 @@ void stream_file(const std::string& input, StoreBuilder& builder, const ReadOpti
 struct MeshStore::Impl {
   StoreHeader header;
   std::string directory;                        // of an opened store ("" in RAM)
-  std::vector<std::vector<std::byte>> ram;      // arrays of a store built in RAM (by ArrayIndex)
+  std::vector<DefaultInitVector<std::byte>> ram;  // arrays of a store built in RAM (by ArrayIndex)
   struct Mapping {
     void* address = nullptr;
     size_t length = 0;
@@ -345,7 +352,7 @@ MeshStore MeshStore::ingest(const std::string& input, const std::string& directo
     std::error_code ec;
     std::filesystem::create_directories(directory, ec);
   }
-  DirectoryOutputs out(directory);
+  DirectoryOutputs out(directory, stream_blocks_in_flight(o.memory_limit));
   StoreBuilder builder(out, o, progress);
   stream_file(input, builder, read, progress);
   StoreBuildResult& r = builder.result();

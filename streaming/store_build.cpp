@@ -64,6 +64,8 @@ StoreBuilder::State::State(StoreOutputs& o, const StoreBuildOptions& opt,
       throw InputError("--memory " + format_memory_size(options.memory_limit) + " is too small: the store build needs at least " +
                        format_memory_size(kFixedOverhead + kMinWork) + " plus 4 bytes per vertex");
     usable = options.memory_limit - kFixedOverhead;
+    const uint64_t streams = uint64_t(kStreamCount) * stream_blocks_in_flight(options.memory_limit) << 20;
+    usable = usable > streams + kMinWork ? usable - streams : kMinWork;
   }
   work_dir = options.work_directory;
   if (work_dir.empty()) {
@@ -77,7 +79,7 @@ StoreBuilder::State::State(StoreOutputs& o, const StoreBuildOptions& opt,
 void StoreBuilder::State::require(uint64_t need, const char* what) const {
   if (need <= usable) return;
   throw InputError("--memory " + format_memory_size(options.memory_limit) + " is too small for " + what +
-                   ": it needs at least " + format_memory_size(need + kFixedOverhead));
+                   ": it needs at least " + format_memory_size(need + (options.memory_limit - usable)));
 }
 
 void StoreBuilder::State::finish_result() {
@@ -194,6 +196,13 @@ void StoreBuilder::end(const ReadStats& stats) {
   s.finish_faces();
   s.build_ranges();
   s.finish_result();
+}
+
+uint32_t stream_blocks_in_flight(uint64_t memory_limit) {
+  // An eighth of the limit for all streams together, 1 to 64 blocks (1 MiB) each: a range's
+  // output (~92 bytes per vertex, ~90 MB for a range of 2^20 vertices) then mostly fits.
+  if (memory_limit == 0) return 64;
+  return uint32_t(std::clamp<uint64_t>(memory_limit / 8 / kStreamCount / (uint64_t(1) << 20), 1, 64));
 }
 
 // ---- In-RAM soups -------------------------------------------------------------------------------

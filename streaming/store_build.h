@@ -42,7 +42,7 @@ struct StoreBuildOptions {
   /// folder, or TMPDIR (else /tmp) for a store built in RAM.
   std::string work_directory;
   /// Vertex range of one pass-4 unit when memory is unlimited (bounds the working set).
-  uint32_t max_range_vertices = 1u << 22;
+  uint32_t max_range_vertices = 1u << 20;
 };
 
 /// Progress of a build: `stage` is "read", "order", "faces", "adjacency"; `done` / `total` in
@@ -114,6 +114,12 @@ class StoreBuilder final : public MeshSink {
  private:
   std::unique_ptr<State> state_;
 };
+
+/// Blocks each output stream may keep waiting for the disk under `memory_limit` (0 = none): a
+/// range's output is then written while the next range is built. The builder plans with
+/// kStreamCount × that many blocks of StoreArrayStream::kBlockBytes.
+uint32_t stream_blocks_in_flight(uint64_t memory_limit);
+inline constexpr uint32_t kStreamCount = 6;  // arrays written at once (pass 4)
 
 /// Feeds an in-RAM soup to `sink` in blocks, as a reader would (for MeshStore::build).
 void stream_soup(const TriangleSoupView& soup, MeshSink& sink, uint32_t block = 1u << 16);

@@ -8,10 +8,15 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <array>
 #include <bit>
 #include <cstddef>
 #include <cstring>
+#include <future>
+#include <chrono>
+#include <limits>
 #include <numeric>
 
 #include "core/errors.h"
@@ -38,7 +43,7 @@ struct ItemLess {
   uint32_t record_bytes = 0;
   std::array<uint32_t, 3> bits(const OrderItem& a) const {
     std::array<uint32_t, 3> b;
-    std::memcpy(b.data(), records + size_t(a.slot) * record_bytes + offsetof(KeyRecord, xyz), 12);
+    std::memcpy(b.data(), records + size_t(a.slot) * record_bytes + offsetof(VertexRecord, xyz), 12);
     return b;
   }
   bool operator()(const OrderItem& a, const OrderItem& b) const {
@@ -61,7 +66,7 @@ void insertion_sort(OrderItem* a, size_t n, const ItemLess& less) {
 }
 
 // Sorts a[0, n) whose keys k satisfy k − base < 2^bits, items of equal key in id order (as they
-// arrive: every distribution below is stable). MSD radix on 11-bit digits down to runs of ≤ 32,
+// arrive: every distribution below is stable). MSD radix on digits of ≤ 11 bits down to runs of ≤ 32,
 // which insertion sort finishes: a surface leaves most cells of a level empty, so the runs shrink
 // fast. tmp has room for n items.
 void msd_sort(OrderItem* a, OrderItem* tmp, size_t n, uint64_t base, int bits, const ItemLess& less) {
@@ -70,8 +75,10 @@ void msd_sort(OrderItem* a, OrderItem* tmp, size_t n, uint64_t base, int bits, c
     if (less.records) std::sort(a, a + n, less);
     return;
   }
-  const int digit = std::min(bits, 11), shift = bits - digit;
-  uint32_t start[(1 << 11) + 1] = {};
+  // About two buckets per item (at most 2^11): a small run must not pay for a big count array.
+  const int digit = std::min({bits, 11, std::max(4, int(std::bit_width(n)) + 1)}), shift = bits - digit;
+  uint32_t start[(1 << 11) + 1];
+  std::fill_n(start, (1 << digit) + 1, 0u);
   for (size_t i = 0; i < n; ++i) ++start[((a[i].key - base) >> shift) + 1];
   for (int d = 0; d < (1 << digit); ++d) start[d + 1] += start[d];
   uint32_t cursor[1 << 11];
@@ -97,6 +104,7 @@ void sort_items(DefaultInitVector<OrderItem>& items, DefaultInitVector<OrderItem
         return m;
       },
       [](MinMax a, MinMax b) { return MinMax{std::min(a.first, b.first), std::max(a.second, b.second)}; });
+  const auto ts0 = std::chrono::steady_clock::now();
   const int range_bits = std::bit_width(range.second - range.first);
   const int cell_bits = std::min({range_bits, 20, std::max(1, int(std::bit_width(n)) - 2)});
   const int shift = range_bits - cell_bits;
@@ -106,12 +114,33 @@ void sort_items(DefaultInitVector<OrderItem>& items, DefaultInitVector<OrderItem
       n, uint32_t(1) << cell_bits, [&](uint64_t i) { return uint32_t((items[i].key - base) >> shift); }, start,
       [&](uint64_t i, uint32_t at) { tmp[at] = items[i]; });
   items.swap(tmp);
+  const auto ts1 = std::chrono::steady_clock::now();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, start.size() - 1, 256), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t c = r.begin(); c != r.end(); ++c)
       if (start[c + 1] - start[c] > 1)
         msd_sort(items.data() + start[c], tmp.data() + start[c], start[c + 1] - start[c], base + (uint64_t(c) << shift),
                  shift, less);
   });
+  if (std::getenv("STREAMCVD_BUILD_TRACE")) {
+    const auto ts2 = std::chrono::steady_clock::now();
+    size_t big = 0, biggest = 0;
+    for (size_t c = 0; c + 1 < start.size(); ++c) big += start[c + 1] - start[c] > 32, biggest = std::max<size_t>(biggest, start[c + 1] - start[c]);
+    std::fprintf(stderr, "sort_items n=%zu cell_bits=%d counting %.3f cells %.3f (cells>32: %zu, biggest %zu)\n", n, cell_bits,
+                 std::chrono::duration<double>(ts1 - ts0).count(), std::chrono::duration<double>(ts2 - ts1).count(), big, biggest);
+  }
+}
+
+// Extends the per-block boxes (State::kBoxBlock store vertices each) with the positions of the
+// store vertices first, first + 1, ... (3 floats each).
+void add_block_boxes(std::vector<float>& boxes, uint64_t first, std::span<const float> xyz) {
+  constexpr uint32_t kBlock = StoreBuilder::State::kBoxBlock;
+  const uint64_t n = xyz.size() / 3, last_block = (first + n + kBlock - 1) / kBlock;
+  constexpr float inf = std::numeric_limits<float>::infinity();
+  while (boxes.size() < 6 * last_block) boxes.insert(boxes.end(), {inf, inf, inf, -inf, -inf, -inf});
+  for (uint64_t i = 0; i < n; ++i) {
+    float* box = &boxes[6 * ((first + i) / kBlock)];
+    for (int k = 0; k < 3; ++k) box[k] = std::min(box[k], xyz[3 * i + k]), box[3 + k] = std::max(box[3 + k], xyz[3 * i + k]);
+  }
 }
 
 }  // namespace
@@ -120,7 +149,7 @@ void StoreBuilder::State::order_vertices() {
   const auto t0 = std::chrono::steady_clock::now();
   ordered = true;
   const uint64_t n_in = input_vertices;
-  const uint32_t record_bytes = uint32_t(sizeof(KeyRecord)) + 4 * attribute_count;
+  const uint32_t record_bytes = uint32_t(sizeof(VertexRecord)) + 4 * attribute_count;
   // The vertex map (4 bytes per input vertex) lives until pass 3 ends.
   const uint64_t map_bytes = 4 * n_in;
   require(map_bytes + kMinWork, ("the vertex map of " + std::to_string(n_in) + " vertices").c_str());
@@ -136,8 +165,9 @@ void StoreBuilder::State::order_vertices() {
                                                               : std::max(input_faces, 2 * n_in));
   auto key_of = [&](uint64_t id, const float* p) { return options.hilbert_order ? hilbert_key(grid, p) : id; };
 
-  // Buckets sized so that one, with its two item arrays, fits the sort budget.
-  const uint64_t per_vertex = record_bytes + 2 * sizeof(OrderItem);
+  // Buckets sized so that one, with its two item arrays and the next bucket read ahead, fits
+  // the sort budget.
+  const uint64_t per_vertex = 2 * record_bytes + 2 * sizeof(OrderItem);
   const uint64_t sort_budget = std::max(kMinWork, free_after(map_bytes) / 2);
   const uint32_t buckets = uint32_t(std::max<uint64_t>(1, (n_in * per_vertex + sort_budget - 1) / sort_budget));
   std::vector<uint64_t> splits;  // bucket of key k = number of splits ≤ k
@@ -151,32 +181,64 @@ void StoreBuilder::State::order_vertices() {
   const uint64_t resident = free_after(map_bytes + sort_budget);
   SpillBuckets key_records(work_dir, buckets, record_bytes, resident, SpillBuckets::block_size_for(buckets, resident));
 
-  // Keys of each block in parallel, then the records to their buckets in file order.
+  double trace[5] = {};
+  auto tick = [&, t = std::chrono::steady_clock::now()](int i) mutable {
+    const auto now = std::chrono::steady_clock::now();
+    trace[i] += std::chrono::duration<double>(now - t).count();
+    t = now;
+  };
+  // Each block: keys and buckets in parallel, the records counting-sorted by bucket into a
+  // staging buffer (stable: file order within a bucket), then one append per bucket.
   uint64_t next_id = 0;
+  DefaultInitVector<uint32_t> bucket_of, start;
   DefaultInitVector<uint64_t> keys;
-  std::vector<std::byte> record(record_bytes);
+  DefaultInitVector<std::byte> staging;
   const uint32_t in_bytes = 12 + 4 * attribute_count;
-  vertex_records->drain(0, [&](std::span<const std::byte> bytes) {
+  auto distribute = [&](std::span<const std::byte> bytes) {
     const size_t m = bytes.size() / in_bytes;
+    bucket_of.resize(m);
     keys.resize(m);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 4096), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i != r.end(); ++i) {
         float p[3];
         std::memcpy(p, bytes.data() + i * in_bytes, 12);
         keys[i] = key_of(next_id + i, p);
+        bucket_of[i] = uint32_t(std::upper_bound(splits.begin(), splits.end(), keys[i]) - splits.begin());
       }
     });
-    for (size_t i = 0; i < m; ++i) {
-      KeyRecord k{keys[i], uint32_t(next_id + i), {}};
-      std::memcpy(k.xyz, bytes.data() + i * in_bytes, 12);
-      std::memcpy(record.data(), &k, sizeof k);
-      std::memcpy(record.data() + sizeof k, bytes.data() + i * in_bytes + 12, 4 * attribute_count);
-      const uint32_t b = uint32_t(std::upper_bound(splits.begin(), splits.end(), keys[i]) - splits.begin());
-      key_records.append(b, record.data());
+    staging.resize(m * record_bytes);
+    auto place = [&](uint64_t i, uint32_t at) {
+      std::byte* rec = staging.data() + size_t(at) * record_bytes;
+      const VertexRecord head{keys[i], uint32_t(next_id + i), {}};
+      std::memcpy(rec, &head, offsetof(VertexRecord, xyz));
+      std::memcpy(rec + offsetof(VertexRecord, xyz), bytes.data() + i * in_bytes, in_bytes);  // xyz, attributes
+    };
+    if (buckets > 1) {
+      counting_sort(m, buckets, [&](uint64_t i) { return bucket_of[i]; }, start, place);
+    } else {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) place(i, uint32_t(i));
+      });
+      start.assign({0, uint32_t(m)});
     }
+    for (uint32_t b = 0; b < buckets; ++b)
+      if (start[b + 1] > start[b])
+        key_records.append(b, staging.data() + size_t(start[b]) * record_bytes, start[b + 1] - start[b]);
     next_id += m;
+  };
+  // Blocks are gathered into batches of ~8 MiB: enough work per batch for every thread.
+  DefaultInitVector<std::byte> batch;
+  constexpr size_t kBatchBytes = size_t(8) << 20;
+  vertex_records->drain(0, [&](std::span<const std::byte> bytes) {
+    if (batch.empty() && bytes.size() >= kBatchBytes) return distribute(bytes);
+    const size_t old = batch.size();
+    batch.resize(old + bytes.size());
+    std::memcpy(batch.data() + old, bytes.data(), bytes.size());
+    if (batch.size() >= kBatchBytes) distribute(batch), batch.clear();
   });
+  if (!batch.empty()) distribute(batch);
   vertex_records.reset();
+  tick(0);
 
   // Each bucket sorted, then emitted in order.
   new_of_old.resize(n_in);
@@ -191,13 +253,21 @@ void StoreBuilder::State::order_vertices() {
   DefaultInitVector<float> out_xyz, out_attributes;
   DefaultInitVector<uint32_t> out_ids;
   uint64_t emitted = 0;
+  // Bucket b + 1 is read (from the disk, when spilled) while bucket b is sorted and emitted.
+  DefaultInitVector<std::byte> next_records;
+  std::future<void> next;
+  if (buckets > 0) next = std::async(std::launch::async, [&] { key_records.take(0, next_records); });
   for (uint32_t b = 0; b < buckets; ++b) {
-    key_records.take(b, records);
+    tick(4);
+    next.get();
+    records.swap(next_records);
+    if (b + 1 < buckets) next = std::async(std::launch::async, [&, b] { key_records.take(b + 1, next_records); });
+    tick(1);
     const size_t n = records.size() / record_bytes;
     items.resize(n);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i != r.end(); ++i) {
-        KeyRecord k;
+        VertexRecord k;
         std::memcpy(&k, records.data() + i * record_bytes, sizeof k);
         items[i] = {k.key, k.id, uint32_t(i)};
       }
@@ -205,6 +275,7 @@ void StoreBuilder::State::order_vertices() {
     ItemLess less;
     if (merge_corners) less = {records.data(), record_bytes};
     sort_items(items, tmp, less);
+    tick(2);
     // A new store vertex per item, or per run of identical corners when merging.
     out_ids.resize(n);
     size_t out_n = 0;
@@ -232,18 +303,23 @@ void StoreBuilder::State::order_vertices() {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, out_n, 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i != r.end(); ++i) {
         const std::byte* rec = records.data() + size_t(items[i].slot) * record_bytes;
-        std::memcpy(&out_xyz[3 * i], rec + offsetof(KeyRecord, xyz), 12);
-        std::memcpy(&out_attributes[attribute_count * i], rec + sizeof(KeyRecord), 4 * attribute_count);
+        std::memcpy(&out_xyz[3 * i], rec + offsetof(VertexRecord, xyz), 12);
+        std::memcpy(&out_attributes[attribute_count * i], rec + sizeof(VertexRecord), 4 * attribute_count);
       }
     });
+    add_block_boxes(block_boxes, vertex_count, out_xyz);
     positions.append(std::span<const float>(out_xyz));
     original_ids.append(std::span<const uint32_t>(out_ids.data(), out_n));
     if (attributes) attributes->append(std::span<const float>(out_attributes));
     vertex_count += uint32_t(out_n);
+    tick(3);
     emitted += n;
     report("order", emitted, n_in);
   }
   result.report.spilled_bytes += key_records.bytes_spilled();
+  if (std::getenv("STREAMCVD_BUILD_TRACE"))
+    std::fprintf(stderr, "order: distribute %.3f take %.3f sort %.3f emit %.3f items %.3f\n", trace[0], trace[1], trace[2],
+                 trace[3], trace[4]);
   result.vertex_count = vertex_count;
   result.report.order_seconds = seconds_since(t0);
 }

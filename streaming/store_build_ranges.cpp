@@ -11,6 +11,8 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <future>
 #include <limits>
 
@@ -28,8 +30,8 @@ void StoreBuilder::State::begin_faces() {
   // Ranges of range_width vertices, each working set within half the memory.
   const uint64_t range_budget = usable == ~uint64_t(0) ? usable : std::max(kMinWork, usable / 2);
   const uint64_t width = std::clamp<uint64_t>(range_budget / kRangeBytesPerVertex, 4096, options.max_range_vertices);
-  range_width = uint32_t(width);
-  range_count = uint32_t((uint64_t(vertex_count) + width - 1) / width);
+  range_width = uint32_t(width / kBoxBlock * kBoxBlock);  // whole box blocks (fewer partial reads)
+  range_count = uint32_t((uint64_t(vertex_count) + range_width - 1) / range_width);
   const uint64_t map_bytes = 4 * input_vertices;
   const uint64_t resident = std::min(free_after(map_bytes), usable / 2);
   const uint32_t buckets = std::max<uint32_t>(range_count, 1);
@@ -95,7 +97,6 @@ struct OpenChunk {
 // The inputs of one range, loaded ahead (on another thread) while the previous range is built.
 struct RangeInput {
   DefaultInitVector<std::byte> faces;  // owned faces, 3 corners each, file order
-  DefaultInitVector<float> positions;  // 3 per vertex of the range
 };
 
 class RangePass {
@@ -112,6 +113,7 @@ class RangePass {
   void write_range();
   void chunk_stats(uint32_t r, const RangeInput& in);
   void close_chunk(uint64_t end_vertex, uint64_t end_face);
+  void add_box(uint32_t v0, uint32_t v1, float* lo, float* hi);
   void finish();
 
   uint32_t begin_of(uint32_t r) const { return r * s_.range_width; }
@@ -134,10 +136,12 @@ class RangePass {
   DefaultInitVector<uint32_t> vf_local_, vv_local_;
   DefaultInitVector<uint8_t> flags_local_;
   std::vector<uint64_t> cuts_;
+  DefaultInitVector<float> partial_;  // positions of a partly covered box block
   // Totals.
   uint64_t vf_base_ = 0, vv_base_ = 0;
   OpenChunk open_;
   std::vector<uint64_t> chunk_pairs_;  // (owner chunk << 32 | touched chunk) of halo faces
+  double trace_[7] = {};
 };
 
 RangePass::RangePass(StoreBuilder::State& s)
@@ -165,8 +169,6 @@ RangePass::RangePass(StoreBuilder::State& s)
 void RangePass::load(uint32_t r, RangeInput& in) {
   s_.owned_faces->take(r, in.faces);
   const uint32_t vb = begin_of(r), n = end_of(r) - vb;
-  in.positions.resize(3 * size_t(n));
-  s_.outputs.read_back("positions.f32", 12 * uint64_t(vb), in.positions.data(), 12 * size_t(n));
 }
 
 // Owned faces counting-sorted by owner (stable): final order and ids; owned_start_ = offsets.
@@ -255,6 +257,26 @@ void RangePass::write_range() {
   vv_base_ += vv_local_.size();
 }
 
+// Grows lo/hi by the positions of store vertices [v0, v1): whole blocks from the block boxes of
+// pass 2, the vertices of partly covered blocks read back from the positions.
+void RangePass::add_box(uint32_t v0, uint32_t v1, float* lo, float* hi) {
+  constexpr uint32_t kBlock = StoreBuilder::State::kBoxBlock;
+  auto grow = [&](const float* l, const float* h) {
+    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], l[k]), hi[k] = std::max(hi[k], h[k]);
+  };
+  auto exact = [&](uint32_t a, uint32_t b) {
+    if (a >= b) return;
+    partial_.resize(3 * size_t(b - a));
+    s_.outputs.read_back("positions.f32", 12 * uint64_t(a), partial_.data(), 12 * size_t(b - a));
+    for (uint32_t i = 0; i < b - a; ++i) grow(&partial_[3 * i], &partial_[3 * i]);
+  };
+  const uint32_t first_whole = (v0 + kBlock - 1) / kBlock, last_whole = v1 / kBlock;  // blocks inside [v0, v1)
+  if (first_whole >= last_whole) return exact(v0, v1);
+  exact(v0, first_whole * kBlock);
+  for (uint32_t b = first_whole; b < last_whole; ++b) grow(&s_.block_boxes[6 * b], &s_.block_boxes[6 * b + 3]);
+  exact(last_whole * kBlock, v1);
+}
+
 void RangePass::close_chunk(uint64_t end_vertex, uint64_t end_face) {
   Chunk& c = open_.chunk;
   c.vertex_end = uint32_t(end_vertex);
@@ -292,27 +314,17 @@ void RangePass::chunk_stats(uint32_t, const RangeInput& in) {
     const uint32_t s1 = next_cut < cuts_.size() ? uint32_t(std::min<uint64_t>(cuts_[next_cut], ve)) : ve;
     const uint64_t chunk_face_begin = open_.chunk.face_begin;
     struct Part {
-      float lo[3], hi[3];
       std::vector<uint32_t> halo;
     };
-    tbb::enumerable_thread_specific<Part> parts([&] {
-      Part p;
-      for (int k = 0; k < 3; ++k) p.lo[k] = open_.lo[k], p.hi[k] = open_.hi[k];
-      return p;
-    });
+    tbb::enumerable_thread_specific<Part> parts;
     tbb::parallel_for(tbb::blocked_range<uint32_t>(s0, s1, 4096), [&](const tbb::blocked_range<uint32_t>& q) {
       Part& p = parts.local();
-      for (uint32_t v = q.begin(); v != q.end(); ++v) {
-        const float* x = &in.positions[3 * size_t(v - vb_)];
-        for (int k = 0; k < 3; ++k) p.lo[k] = std::min(p.lo[k], x[k]), p.hi[k] = std::max(p.hi[k], x[k]);
+      for (uint32_t v = q.begin(); v != q.end(); ++v)
         for (uint64_t j = vf_off_[v - vb_]; j != vf_off_[v - vb_ + 1]; ++j)
           if (vf_local_[j] < chunk_face_begin) p.halo.push_back(vf_local_[j]);
-      }
     });
-    for (Part& p : parts) {
-      for (int k = 0; k < 3; ++k) open_.lo[k] = std::min(open_.lo[k], p.lo[k]), open_.hi[k] = std::max(open_.hi[k], p.hi[k]);
-      open_.halo.insert(open_.halo.end(), p.halo.begin(), p.halo.end());
-    }
+    add_box(s0, s1, open_.lo, open_.hi);
+    for (Part& p : parts) open_.halo.insert(open_.halo.end(), p.halo.begin(), p.halo.end());
     if (s1 < ve || (next_cut < cuts_.size() && cuts_[next_cut] == ve)) {
       close_chunk(s1, face_base_ + owned_start_[s1 - vb_]);
       ++next_cut;
@@ -355,16 +367,31 @@ void RangePass::run() {
     next.get();
     RangeInput& in = buffers[r % 2];
     if (r + 1 < s_.range_count) next = std::async(std::launch::async, [&, r] { load(r + 1, buffers[(r + 1) % 2]); });
+    auto tick = [&, t = std::chrono::steady_clock::now()](int i) mutable {
+      const auto now = std::chrono::steady_clock::now();
+      trace_[i] += std::chrono::duration<double>(now - t).count();
+      t = now;
+    };
+    tick(0);
     sort_owned(r, in);
+    tick(1);
     cut_chunks(r);
+    tick(2);
     send_foreign(r);
+    tick(3);
     local_adjacency(r);
+    tick(4);
     write_range();
+    tick(5);
     chunk_stats(r, in);
+    tick(6);
     face_base_ += owned_start_[n_];
     s_.report("adjacency", r + 1, s_.range_count);
   }
   finish();
+  if (std::getenv("STREAMCVD_BUILD_TRACE"))
+    std::fprintf(stderr, "ranges: wait %.3f sort %.3f cut %.3f foreign %.3f adjacency %.3f write %.3f chunks %.3f\n",
+                 trace_[0], trace_[1], trace_[2], trace_[3], trace_[4], trace_[5], trace_[6]);
   s_.result.report.spilled_bytes += foreign_.bytes_spilled();
 }
 

@@ -37,12 +37,13 @@ struct PositionSample {
 };
 
 /// A vertex record of pass 2: Hilbert key, input id, position (attributes follow in the record).
-struct KeyRecord {
+/// The key travels with the record: computing it costs more than carrying it through the disk.
+struct VertexRecord {
   uint64_t key;
   uint32_t id;
   float xyz[3];
 };
-static_assert(sizeof(KeyRecord) == 24);
+static_assert(sizeof(VertexRecord) == 24);
 
 /// A face sent to a later vertex range that holds one of its corners (pass 4).
 struct ForeignFace {
@@ -116,6 +117,11 @@ struct StoreBuilder::State {
   HilbertGrid grid;
   DefaultInitVector<uint32_t> new_of_old;  ///< input vertex → store vertex
   uint32_t vertex_count = 0;               ///< store vertices
+
+  // Bounding box of every kBoxBlock store vertices (pass 2), from which pass 4 gets the chunks'
+  // boxes without reading the positions back (only the few vertices of partial blocks).
+  static constexpr uint32_t kBoxBlock = 4096;
+  std::vector<float> block_boxes;          ///< 6 per block: lo xyz, hi xyz (empty: ±inf)
 
   // Pass 3: faces by owner range.
   uint32_t range_width = 1, range_count = 0;

@@ -84,8 +84,8 @@ void StoreDirectoryWriter::add(const std::string& name, std::span<const std::byt
   ready_.notify_one();
 }
 
-StoreArrayStream& StoreDirectoryWriter::stream(const std::string& name) {
-  streams_.push_back(std::make_unique<StoreArrayStream>(directory_ + "/" + name));
+StoreArrayStream& StoreDirectoryWriter::stream(const std::string& name, uint32_t blocks_in_flight) {
+  streams_.push_back(std::make_unique<StoreArrayStream>(directory_ + "/" + name, false, blocks_in_flight));
   return *streams_.back();
 }
 
@@ -116,17 +116,21 @@ void StoreDirectoryWriter::finish(const std::string& name, std::span<const std::
 namespace streamcvd {
 
 void MemoryArrayOutput::append(const void* data, size_t n) {
-  const std::byte* p = static_cast<const std::byte*>(data);
-  data_.insert(data_.end(), p, p + n);
+  const size_t old = data_.size();
+  if (old + n > data_.capacity()) data_.reserve(std::max(old + n, 2 * data_.capacity()));
+  data_.resize(old + n);  // no zero fill (DefaultInitVector)
+  std::memcpy(data_.data() + old, data, n);
 }
 
 namespace {
-constexpr size_t kStreamBlock = size_t(1) << 20;  // large enough for full-speed direct I/O
-constexpr size_t kStreamBlocksInFlight = 2;
+constexpr size_t kStreamBlock = StoreArrayStream::kBlockBytes;  // large enough for full-speed direct I/O
 }  // namespace
 
-StoreArrayStream::StoreArrayStream(const std::string& path, bool scratch)
-    : file_(std::make_unique<AtomicOutputFile>(path)), pool_(std::make_unique<BlockPool>(kStreamBlock)), scratch_(scratch) {
+StoreArrayStream::StoreArrayStream(const std::string& path, bool scratch, uint32_t blocks_in_flight)
+    : file_(std::make_unique<AtomicOutputFile>(path)),
+      pool_(std::make_unique<BlockPool>(kStreamBlock)),
+      scratch_(scratch),
+      in_flight_(std::max<uint32_t>(blocks_in_flight, 1)) {
   thread_ = std::thread([this] { run(); });
 }
 
@@ -174,7 +178,7 @@ void StoreArrayStream::submit() {
   block_ = nullptr;
   used_ = 0;
   changed_.notify_all();
-  changed_.wait(lock, [&] { return queue_.size() < kStreamBlocksInFlight || error_; });
+  changed_.wait(lock, [&] { return queue_.size() < in_flight_ || error_; });
   if (error_) std::rethrow_exception(error_);
 }
 

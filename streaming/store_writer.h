@@ -24,6 +24,8 @@
 #include <thread>
 #include <vector>
 
+#include "core/default_init_vector.h"
+
 namespace streamcvd {
 
 class AtomicOutputFile;
@@ -51,10 +53,10 @@ class MemoryArrayOutput final : public ArrayOutput {
   uint64_t bytes() const override { return data_.size(); }
   /// Expected final size: one allocation instead of a growing copy.
   void reserve(uint64_t bytes) { data_.reserve(bytes); }
-  std::vector<std::byte>& data() { return data_; }
+  DefaultInitVector<std::byte>& data() { return data_; }
 
  private:
-  std::vector<std::byte> data_;
+  DefaultInitVector<std::byte> data_;
 };
 
 /// One array file of a store being written front to back: 1 MiB page-aligned blocks, each
@@ -64,7 +66,10 @@ class StoreArrayStream final : public ArrayOutput {
  public:
   /// A file at `path`; with `scratch` it is never committed and finish() skips the fsync (an
   /// anonymous scratch array that is mapped, then vanishes with its descriptor).
-  explicit StoreArrayStream(const std::string& path, bool scratch = false);
+  /// `blocks_in_flight` bounds the blocks waiting for the disk (an append waits beyond it).
+  explicit StoreArrayStream(const std::string& path, bool scratch = false, uint32_t blocks_in_flight = 2);
+  /// Bytes of one block.
+  static constexpr size_t kBlockBytes = size_t(1) << 20;
   ~StoreArrayStream() override;
   void append(const void* data, size_t n) override;
   uint64_t bytes() const override { return bytes_; }
@@ -91,6 +96,7 @@ class StoreArrayStream final : public ArrayOutput {
   bool closing_ = false;
   bool finished_ = false;
   bool scratch_ = false;
+  uint32_t in_flight_ = 2;
   std::exception_ptr error_;
   std::thread thread_;
 };
@@ -111,7 +117,7 @@ class StoreDirectoryWriter {
   void add(const std::string& name, std::span<const std::byte> bytes);
   /// A file `name` written front to back (any number may be open at once); finish() syncs and
   /// commits it with the others. The reference stays valid until finish() or destruction.
-  StoreArrayStream& stream(const std::string& name);
+  StoreArrayStream& stream(const std::string& name, uint32_t blocks_in_flight = 2);
   /// Waits for the arrays, then steps 3 and 4 with the header file `name`. Rethrows the first
   /// write error (OutputError); the temporary files are then removed.
   void finish(const std::string& name, std::span<const std::byte> header);

@@ -103,13 +103,13 @@ TEST_F(Ingest, PipeAndMemoryLimitsGiveByteIdenticalStores) {
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   expect_same_store_files(a, b);
   // A limit small enough for key buckets, many vertex ranges and spilled blocks.
-  r = run_cli({"ingest", *torus_, c.string(), "--memory", "40M", "--json"});
+  r = run_cli({"ingest", *torus_, c.string(), "--memory", "48M", "--json"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   const nlohmann::json k = nlohmann::json::parse(r.out);
   EXPECT_GT(k["key_buckets"].get<uint32_t>(), 1u);
   EXPECT_GT(k["vertex_ranges"].get<uint32_t>(), 1u);
   EXPECT_GT(k["spilled_bytes"].get<uint64_t>(), 0u);
-  EXPECT_EQ(k["memory_limit_bytes"], 40 << 20);
+  EXPECT_EQ(k["memory_limit_bytes"], 48 << 20);
   expect_same_store_files(a, c);
 }
 
@@ -137,7 +137,7 @@ TEST_F(Ingest, TruncatedFaceBlockFailsNamingTheByte) {
   const std::string cut = (out_ / "cut.ply").string();
   fs::copy_file(*torus_, cut);
   fs::resize_file(cut, fs::file_size(cut) * 9 / 10);  // inside the face block, after the vertices
-  for (const char* memory : {"1G", "40M"}) {
+  for (const char* memory : {"1G", "48M"}) {
     const fs::path store = out_ / (std::string("s") + memory);
     CliResult r = run_cli({"ingest", cut, store.string(), "--memory", memory});
     EXPECT_EQ(r.exit_code, 2) << r.describe();
@@ -167,7 +167,7 @@ TEST_F(Ingest, IndexOutOfRangeInTheLastFaceFailsNamingIt) {
 TEST_F(Ingest, FullDiskFailsWithExitThreeAndLeavesNothing) {
   CliLimits limits;
   limits.file_size_bytes = 12 << 20;  // positions (9 MB) fit, the face arrays (18 MB) do not
-  for (const char* memory : {"1G", "40M"}) {
+  for (const char* memory : {"1G", "48M"}) {
     const fs::path store = out_ / (std::string("s") + memory);
     CliResult r = run_cli({"ingest", *torus_, store.string(), "--memory", memory}, limits);
     EXPECT_EQ(r.exit_code, 3) << r.describe();
@@ -183,7 +183,7 @@ TEST_F(Ingest, SignalsMidBuildLeaveNoStoreAndNoTemporaries) {
     const fs::path store = out_ / ("s" + std::to_string(sig));
     // Wait until the build writes files (anonymous ones: only its descriptors show them), then
     // signal it in the middle of the build.
-    CliResult r = run_cli({"ingest", *torus_, store.string(), "--memory", "40M"}, {}, [&](pid_t pid) {
+    CliResult r = run_cli({"ingest", *torus_, store.string(), "--memory", "48M"}, {}, [&](pid_t pid) {
       const auto t0 = std::chrono::steady_clock::now();
       while (!writes_in(pid, store) && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
         std::this_thread::sleep_for(std::chrono::microseconds(200));

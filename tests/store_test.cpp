@@ -375,7 +375,7 @@ TEST(Store, IngestToDiskEqualsBuildInRamAtAnyMemoryLimit) {
   const fs::path root = test::temp_dir("store_ingest");
   const fs::path ply = root / "mesh.ply";
   write_mesh(ply.string(), mesh.view());
-  for (uint64_t limit : {uint64_t(0), uint64_t(40) << 20}) {
+  for (uint64_t limit : {uint64_t(0), uint64_t(48) << 20}) {
     SCOPED_TRACE(limit);
     const fs::path dir = root / ("store" + std::to_string(limit));
     StoreBuildOptions o = options;
@@ -397,10 +397,10 @@ TEST(Store, IngestToDiskEqualsBuildInRamAtAnyMemoryLimit) {
     EXPECT_EQ(temporaries, 0u);
   }
   // A temporary store of a file: in RAM without a limit, in anonymous mapped work files under
-  // one (its ~70 MB do not fit half of 40 MiB); the same bytes, and nothing left in the folder.
+  // one (its ~70 MB do not fit half of 48 MiB); the same bytes, and nothing left in the folder.
   const fs::path work = root / "work";
   fs::create_directories(work);
-  for (uint64_t limit : {uint64_t(0), uint64_t(40) << 20}) {
+  for (uint64_t limit : {uint64_t(0), uint64_t(48) << 20}) {
     StoreBuildOptions o = options;
     o.memory_limit = limit;
     o.work_directory = work.string();

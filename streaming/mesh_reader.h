@@ -48,6 +48,14 @@ struct MeshHeaderInfo {
   /// MeshSink::triangles for what may then arrive early.
   bool vertices_before_triangles = false;
   std::vector<VertexAttribute> attributes;  ///< in the order of MeshSink::vertices' rows
+  /// Binary PLY from a regular file: the reader measured the vertex element before streaming it
+  /// (one sequential pass), so a consumer can order vertices as they arrive instead of keeping
+  /// them first. The bounds are exactly those of the finite coordinates handed out later; the
+  /// sample holds the positions of vertices 0, stride, 2·stride, ... (at most 2^17 of them).
+  bool has_bounds = false;
+  float bounds_lo[3] = {0, 0, 0}, bounds_hi[3] = {0, 0, 0};
+  std::vector<float> position_sample;
+  uint64_t sample_stride = 1;
 };
 
 /// Counts a reader reports at the end.

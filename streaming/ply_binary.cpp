@@ -2,7 +2,11 @@
 // InputStream::fill() windows into the emitter's blocks, with fast paths for the layouts of
 // nearly every binary PLY: "float x y z" vertices (one memcpy per block) and "uchar count +
 // int/uint indices" faces (a run copy, then one range test per triangle).
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -326,6 +330,69 @@ struct BinaryReader {
 };
 
 }  // namespace
+
+void prescan_vertex_bounds(InputStream& in, const Header& h, BlockEmitter& out) {
+  if (in.compressed() || in.file_size() == 0 || in.path() == "stdin" || in.path() == "-") return;
+  uint64_t offset = in.offset();  // uncompressed: bytes of the file consumed by the header
+  const Element* vertices = nullptr;
+  for (size_t i = 0; i <= h.last_needed && !vertices; ++i) {
+    const Element& e = h.elements[i];
+    if (!e.fixed) return;  // an element of lists before the vertices: no known offset
+    if (e.role == Role::Vertices) vertices = &e;
+    else offset += e.count * e.record_bytes;
+  }
+  if (!vertices || vertices->count == 0) return;
+  const Element& e = *vertices;
+  const bool swap = (h.encoding == Encoding::BinaryBig) != (std::endian::native == std::endian::big);
+  Field axis[3];
+  size_t off = 0;
+  for (const Property& p : e.props) {
+    if (p.use == Use::X || p.use == Use::Y || p.use == Use::Z) axis[int(p.use) - int(Use::X)] = {off, p.type};
+    off += scalar_size(p.type);
+  }
+  const size_t stride = e.record_bytes;
+  if (offset + e.count * stride > in.file_size()) return;
+  const int fd = ::open(in.path().c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return;
+  MeshHeaderInfo& info = out.header();
+  uint64_t sample_stride = 1;
+  while (e.count / sample_stride > (uint64_t(1) << 17)) sample_stride *= 2;
+  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  std::vector<float> sample;
+  const size_t per_read = std::max<size_t>(1, (size_t(8) << 20) / stride);
+  std::vector<char> buffer(per_read * stride);
+  bool ok = true;
+  for (uint64_t v = 0; v < e.count && ok;) {
+    const size_t n = size_t(std::min<uint64_t>(per_read, e.count - v)), bytes = n * stride;
+    for (size_t got = 0; got < bytes;) {
+      const ssize_t r = ::pread(fd, buffer.data() + got, bytes - got, off_t(offset + v * stride + got));
+      if (r < 0 && errno == EINTR) continue;
+      if (r <= 0) {
+        ok = false;
+        break;
+      }
+      got += size_t(r);
+    }
+    const char* src = buffer.data();
+    for (size_t i = 0; ok && i < n; ++i, src += stride) {
+      float p[3];
+      for (int a = 0; a < 3; ++a) {
+        p[a] = load_float(src + axis[a].offset, axis[a].type, swap);
+        if (std::isfinite(p[a])) lo[a] = std::min(lo[a], p[a]), hi[a] = std::max(hi[a], p[a]);
+      }
+      if ((v + i) % sample_stride == 0) sample.insert(sample.end(), p, p + 3);
+    }
+    v += n;
+  }
+  ::posix_fadvise(fd, off_t(offset), off_t(e.count * stride), POSIX_FADV_DONTNEED);
+  ::close(fd);
+  if (!ok) return;
+  info.has_bounds = true;
+  std::copy(lo, lo + 3, info.bounds_lo);
+  std::copy(hi, hi + 3, info.bounds_hi);
+  info.position_sample = std::move(sample);
+  info.sample_stride = sample_stride;
+}
 
 void read_binary_body(InputStream& in, const Header& h, BlockEmitter& out) {
   const bool file_big = h.encoding == Encoding::BinaryBig;

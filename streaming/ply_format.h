@@ -60,6 +60,11 @@ struct Header {
 /// fills in out.header(). Throws InputError "<file>: line N: ..." for a malformed header, one
 /// without vertices, or one with no element readable as faces (naming the elements found).
 Header parse_header(InputStream& in, const ReadOptions& options, BlockEmitter& out);
+/// Binary PLY from a regular uncompressed file whose vertex element has fixed-size records at a
+/// known offset: reads that element once ahead (pread on its own descriptor) for its bounds and
+/// a position sample (MeshHeaderInfo::has_bounds). Best effort: anything unusual skips it, and
+/// the streamed read then reports every problem as usual. O(vertex element bytes).
+void prescan_vertex_bounds(InputStream& in, const Header& h, BlockEmitter& out);
 /// Fails fast when the header promises more records than the rest of an uncompressed file can
 /// hold (e.g. "element vertex 4000000000" in a 100-byte file), before reading the body.
 void check_counts_fit(InputStream& in, const Header& h);

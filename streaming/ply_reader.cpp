@@ -215,6 +215,7 @@ std::string index_problem(int64_t v, uint32_t nv) {
 void stream_ply(InputStream& in, BlockEmitter& out) {
   const ply::Header h = ply::parse_header(in, out.options(), out);
   ply::check_counts_fit(in, h);
+  if (h.encoding != ply::Encoding::Ascii) ply::prescan_vertex_bounds(in, h, out);
   out.begin();
   if (h.encoding == ply::Encoding::Ascii) ply::read_ascii_body(in, h, out);
   else ply::read_binary_body(in, h, out);

@@ -48,11 +48,30 @@ ScratchFile::~ScratchFile() {
   if (fd_ >= 0) ::close(fd_);
 }
 
+void ScratchFile::write_at(uint64_t offset, const void* data, size_t n) {
+  const char* p = static_cast<const char*>(data);
+  for (size_t done = 0; done < n;) {
+    const ssize_t w = ::pwrite(fd_, p + done, n - done, off_t(offset + done));
+    if (w < 0 && errno == EINTR) continue;
+    if (w < 0 && errno == EINVAL && direct_ && done == 0) {  // refused after all: buffered from now on
+      const int flags = ::fcntl(fd_, F_GETFL);
+      if (flags >= 0 && ::fcntl(fd_, F_SETFL, flags & ~O_DIRECT) == 0) continue;
+    }
+    if (w <= 0)
+      throw OutputError(error_at(folder_, "cannot write a work file (at byte " + std::to_string(offset + done) +
+                                              "): " + (w < 0 ? std::strerror(errno) : "no progress")));
+    done += size_t(w);
+  }
+  uint64_t end = offset + n, seen = size_.load(std::memory_order_relaxed);
+  while (end > seen && !size_.compare_exchange_weak(seen, end)) {
+  }
+}
+
 void ScratchFile::append(const void* data, size_t n) {
   const char* p = static_cast<const char*>(data);
   size_t done = 0;
   while (done < n) {
-    const ssize_t w = ::pwrite(fd_, p + done, n - done, off_t(size_ + done));
+    const ssize_t w = ::pwrite(fd_, p + done, n - done, off_t(size_.load() + done));
     if (w < 0 && errno == EINTR) continue;
     if (w < 0 && errno == EINVAL && direct_ && done == 0) {  // refused after all: buffered from now on
       const int flags = ::fcntl(fd_, F_GETFL);
@@ -60,7 +79,7 @@ void ScratchFile::append(const void* data, size_t n) {
       if (flags >= 0 && ::fcntl(fd_, F_SETFL, flags & ~O_DIRECT) == 0) continue;
     }
     if (w <= 0)
-      throw OutputError(error_at(folder_, "cannot write a work file (" + std::to_string(size_ + done) +
+      throw OutputError(error_at(folder_, "cannot write a work file (" + std::to_string(size_.load() + done) +
                                               " bytes written): " + (w < 0 ? std::strerror(errno) : "no progress")));
     done += size_t(w);
   }
@@ -84,32 +103,37 @@ void ScratchFile::read(uint64_t offset, void* dst, size_t n) const {
 // ---- BlockPool --------------------------------------------------------------------------------
 
 BlockPool::~BlockPool() {
-  for (std::byte* b : all_) ::munmap(b, block_bytes_);
+  for (std::byte* b : free_) ::munmap(b, block_bytes_);
 }
 
 std::byte* BlockPool::get() {
   std::lock_guard lock(mutex_);
+  ++in_use_;
   if (!free_.empty()) {
     std::byte* b = free_.back();
     free_.pop_back();
     return b;
   }
   void* m = ::mmap(nullptr, block_bytes_, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-  if (m == MAP_FAILED) throw std::bad_alloc();
-  all_.push_back(static_cast<std::byte*>(m));
-  return all_.back();
+  if (m == MAP_FAILED) {
+    --in_use_;
+    throw std::bad_alloc();
+  }
+  return static_cast<std::byte*>(m);
 }
 
 void BlockPool::put(std::byte* block) {
-  // Kept resident for reuse: giving the pages back would fault them in again at every reuse.
-  // The pool never holds more than the peak of blocks in use, and unmaps them all at the end.
+  // A few free blocks stay resident for reuse (giving their pages back would fault them in
+  // again at every reuse); beyond kKeepFree they go back to the system.
   std::lock_guard lock(mutex_);
-  free_.push_back(block);
+  --in_use_;
+  if (free_.size() < kKeepFree) free_.push_back(block);
+  else ::munmap(block, block_bytes_);
 }
 
 size_t BlockPool::in_use() const {
   std::lock_guard lock(mutex_);
-  return all_.size() - free_.size();
+  return in_use_;
 }
 
 // ---- SpillBuckets -----------------------------------------------------------------------------
@@ -133,14 +157,12 @@ SpillBuckets::SpillBuckets(std::string folder, uint32_t bucket_count, uint32_t r
       closed_records_(bucket_count, 0) {}
 
 SpillBuckets::~SpillBuckets() {
-  if (writer_.joinable()) {
-    {
-      std::lock_guard lock(mutex_);
-      closing_ = true;
-    }
-    changed_.notify_all();
-    writer_.join();
+  {
+    std::lock_guard lock(mutex_);
+    closing_ = true;
   }
+  changed_.notify_all();
+  for (std::thread& t : writers_) t.join();
   for (Open& o : open_)
     if (o.begin) pool_.put(o.begin);
   for (auto& list : blocks_)
@@ -188,13 +210,14 @@ void SpillBuckets::close_block(uint32_t bucket) {
     resident_bytes_ += block_bytes_;
   } else {
     // Spill: the writer thread owns the block until written, then recycles it.
-    if (!writer_.joinable()) {
+    if (writers_.empty()) {
       file_ = std::make_unique<ScratchFile>(folder_);
-      writer_ = std::thread([this] { writer_loop(); });
+      for (int i = 0; i < kWriters; ++i) writers_.emplace_back([this] { writer_loop(); });
     }
     b.offset = next_offset_;
     next_offset_ += block_bytes_;
     queue_.push_back({o.begin, b.offset});
+    pending_.insert(b.offset);
     b.data = nullptr;
     changed_.notify_all();
   }
@@ -207,7 +230,7 @@ void SpillBuckets::next_block(uint32_t bucket) {
   // Bound the blocks in flight: the appending thread waits when the writer falls behind.
   {
     std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return queue_.size() < 8 || error_; });
+    changed_.wait(lock, [&] { return queue_.size() < 16 || error_; });
     if (error_) std::rethrow_exception(error_);
   }
   Open& o = open_[bucket];
@@ -224,9 +247,10 @@ void SpillBuckets::writer_loop() {
       changed_.wait(lock, [&] { return closing_ || !queue_.empty(); });
       if (queue_.empty()) return;
       w = queue_.front();
+      queue_.pop_front();
     }
     try {
-      file_->append(w.data, block_bytes_);
+      file_->write_at(w.offset, w.data, block_bytes_);
     } catch (...) {
       std::lock_guard lock(mutex_);
       if (!error_) error_ = std::current_exception();
@@ -234,8 +258,7 @@ void SpillBuckets::writer_loop() {
     pool_.put(w.data);
     {
       std::lock_guard lock(mutex_);
-      queue_.pop_front();
-      written_ = w.offset + block_bytes_;
+      pending_.erase(w.offset);
     }
     changed_.notify_all();
   }
@@ -257,7 +280,7 @@ void SpillBuckets::take(uint32_t bucket, DefaultInitVector<std::byte>& out) {
   out.resize(size_t(total) * record_bytes_ + open_bytes);
   if (last_offset_end > 0) {  // wait until the writer has put this bucket's blocks on disk
     std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return written_ >= last_offset_end || error_; });
+    changed_.wait(lock, [&] { return written_below(last_offset_end) || error_; });
     if (error_) std::rethrow_exception(error_);
   }
   std::byte* at = out.data();
@@ -306,7 +329,7 @@ void SpillBuckets::drain(uint32_t bucket, const std::function<void(std::span<con
     }
     {
       std::unique_lock lock(mutex_);
-      changed_.wait(lock, [&] { return written_ >= b.offset + block_bytes_ || error_; });
+      changed_.wait(lock, [&] { return written_below(b.offset + block_bytes_) || error_; });
       if (error_) std::rethrow_exception(error_);
     }
     staging.resize(bytes);

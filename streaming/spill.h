@@ -9,7 +9,9 @@
 #include <cstdint>
 #include <cstring>
 #include <deque>
+#include <atomic>
 #include <exception>
+#include <set>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -38,10 +40,12 @@ class ScratchFile {
   /// Appends n bytes (n a multiple of kAlign, data kAlign-aligned). One writing thread at a
   /// time. Throws OutputError naming the folder on a write error (disk full, file size limit).
   void append(const void* data, size_t n);
+  /// Writes n bytes at `offset` (aligned as for append()). Thread-safe for distinct ranges.
+  void write_at(uint64_t offset, const void* data, size_t n);
   /// Copies n bytes at `offset` (< size()) into dst. Thread-safe (pread). Throws InputError on
   /// a read error.
   void read(uint64_t offset, void* dst, size_t n) const;
-  uint64_t size() const { return size_; }
+  uint64_t size() const { return size_.load(); }
   const std::string& folder() const { return folder_; }
 
  private:
@@ -49,11 +53,11 @@ class ScratchFile {
   int fd_ = -1;       // appends (O_DIRECT when possible)
   int read_fd_ = -1;  // positional reads, buffered
   bool direct_ = false;
-  uint64_t size_ = 0;
+  std::atomic<uint64_t> size_{0};
 };
 
-/// Page-aligned memory blocks of one size, recycled (mapped once, never returned to malloc).
-/// Thread-safe.
+/// Page-aligned memory blocks of one size, mapped directly (never from malloc's heap); up to
+/// kKeepFree returned blocks are kept for reuse, the others unmapped. Thread-safe.
 class BlockPool {
  public:
   explicit BlockPool(size_t block_bytes) : block_bytes_(block_bytes) {}
@@ -68,8 +72,10 @@ class BlockPool {
 
  private:
   size_t block_bytes_;
+  static constexpr size_t kKeepFree = 16;
   mutable std::mutex mutex_;
-  std::vector<std::byte*> free_, all_;
+  std::vector<std::byte*> free_;
+  size_t in_use_ = 0;
 };
 
 /// `bucket_count` buckets of `record_bytes`-byte records. Appends fill one open block per
@@ -157,10 +163,12 @@ class SpillBuckets {
   mutable std::mutex mutex_;
   std::condition_variable changed_;
   std::deque<Write> queue_;
-  uint64_t written_ = 0;                    // bytes the writer has finished
+  std::set<uint64_t> pending_;              // offsets of blocks queued or being written
+  bool written_below(uint64_t end) const { return pending_.empty() || *pending_.begin() >= end; }
   bool closing_ = false;
   std::exception_ptr error_;
-  std::thread writer_;
+  static constexpr int kWriters = 2;       // two requests in flight: the disk is faster at QD2
+  std::vector<std::thread> writers_;
 };
 
 }  // namespace streamcvd

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstdio>
 #include <limits>
 
 #include "core/errors.h"
@@ -74,6 +75,21 @@ StoreBuilder::State::State(StoreOutputs& o, const StoreBuildOptions& opt,
   }
   for (int k = 0; k < 3; ++k) lo[k] = std::numeric_limits<float>::infinity(), hi[k] = -lo[k];
   result.report.memory_limit = options.memory_limit;
+  trace = std::getenv("STREAMCVD_BUILD_TRACE") != nullptr;
+}
+
+void StoreBuilder::State::note_memory(const char* stage) const {
+  static std::string last;
+  static uint64_t peak = 0;
+  const uint64_t now = resident_anonymous_bytes();
+  if (last != stage) {
+    if (!last.empty())
+      std::fprintf(stderr, "memory: %s peak %s (t = %.2f s)\n", last.c_str(), format_memory_size(peak).c_str(),
+                   seconds_since(started));
+    last = stage;
+    peak = 0;
+  }
+  peak = std::max(peak, now);
 }
 
 void StoreBuilder::State::require(uint64_t need, const char* what) const {
@@ -115,7 +131,19 @@ void StoreBuilder::begin(const MeshHeaderInfo& header) {
   s.merge_corners = header.corners_by_value;
   s.result.attributes = header.attributes;
   const uint32_t record = 12 + 4 * s.attribute_count;
-  s.vertex_records = std::make_unique<SpillBuckets>(s.work_dir, 1, record, s.usable);
+  if (header.has_bounds && !s.merge_corners && header.vertices != MeshHeaderInfo::kUnknown) {
+    // The reader measured the vertices first: they go to the key buckets as they arrive.
+    float box_lo[3], box_hi[3];
+    for (int k = 0; k < 3; ++k) {
+      const bool empty = !(header.bounds_lo[k] <= header.bounds_hi[k]);
+      box_lo[k] = empty ? 0 : header.bounds_lo[k];
+      box_hi[k] = empty ? 0 : header.bounds_hi[k];
+    }
+    s.plan_order(header.vertices, box_lo, box_hi, header.position_sample, header.sample_stride);
+    return;
+  }
+  // Half the memory at most: pass 2 needs room for its buckets while these drain.
+  s.vertex_records = std::make_unique<SpillBuckets>(s.work_dir, 1, record, s.usable / 2);
 }
 
 void StoreBuilder::vertices(std::span<const float> xyz, std::span<const float> attributes) {
@@ -129,16 +157,22 @@ void StoreBuilder::vertices(std::span<const float> xyz, std::span<const float> a
       const float c = xyz[3 * i + k];
       if (std::isfinite(c)) s.lo[k] = std::min(s.lo[k], c), s.hi[k] = std::max(s.hi[k], c);
     }
-  s.sample.add(s.input_vertices, xyz);
-  if (s.attribute_count == 0) {
-    s.vertex_records->append(0, xyz.data(), n);
-  } else {
-    std::vector<float> record(3 + s.attribute_count);
+  // Records of xyz + attributes, to the key buckets (bounds known) or to the pass-1 spill.
+  std::span<const std::byte> records = std::as_bytes(xyz);
+  if (s.attribute_count > 0) {
+    const uint32_t a = s.attribute_count;
+    s.record_scratch.resize(n * (3 + a));
     for (uint64_t i = 0; i < n; ++i) {
-      std::copy_n(&xyz[3 * i], 3, record.data());
-      std::copy_n(&attributes[s.attribute_count * i], s.attribute_count, record.data() + 3);
-      s.vertex_records->append(0, record.data());
+      std::copy_n(&xyz[3 * i], 3, &s.record_scratch[(3 + a) * i]);
+      std::copy_n(&attributes[a * i], a, &s.record_scratch[(3 + a) * i + 3]);
     }
+    records = std::as_bytes(std::span<const float>(s.record_scratch));
+  }
+  if (s.key_records) {
+    s.distribute_batched(records, false);
+  } else {
+    s.sample.add(s.input_vertices, xyz);
+    s.vertex_records->append(0, records.data(), n);
   }
   s.input_vertices += n;
 }

@@ -145,99 +145,140 @@ void add_block_boxes(std::vector<float>& boxes, uint64_t first, std::span<const 
 
 }  // namespace
 
+// Plans pass 2 for n_in vertices in the box [box_lo, box_hi] (a sample of their positions
+// gives the key ranges): the grid, the number of key buckets, their split keys, the buckets.
+void StoreBuilder::State::plan_order(uint64_t n_in, const float* box_lo, const float* box_hi,
+                                     std::span<const float> sample_xyz, uint64_t sample_stride) {
+  order_record_bytes = uint32_t(sizeof(VertexRecord)) + 4 * attribute_count;
+  // The vertex map (4 bytes per input vertex) lives until pass 3 ends.
+  const uint64_t map_bytes = 4 * n_in;
+  require(map_bytes + kMinWork, ("the vertex map of " + std::to_string(n_in) + " vertices").c_str());
+  grid = make_hilbert_grid(box_lo, box_hi);
+  // Buckets sized so that one, with its two item arrays and the next bucket read ahead, fits
+  // the sort budget.
+  const uint64_t per_vertex = 2 * order_record_bytes + 2 * sizeof(OrderItem);
+  // A quarter of what the map leaves: smaller buckets leave more of them resident (unspilled).
+  const uint64_t sort_budget = std::max(kMinWork, free_after(map_bytes) / 4);
+  const uint32_t buckets = uint32_t(std::max<uint64_t>(1, (n_in * per_vertex + sort_budget - 1) / sort_budget));
+  key_splits.clear();  // bucket of key k = number of splits ≤ k
+  if (buckets > 1) {
+    std::vector<uint64_t> keys(sample_xyz.size() / 3);
+    for (size_t i = 0; i < keys.size(); ++i) keys[i] = vertex_key(i * sample_stride, &sample_xyz[3 * i]);
+    std::sort(keys.begin(), keys.end());
+    for (uint32_t b = 1; b < buckets; ++b) key_splits.push_back(keys.empty() ? 0 : keys[keys.size() * b / buckets]);
+  }
+  result.report.key_buckets = buckets;
+  const uint64_t resident = free_after(map_bytes + sort_budget);
+  key_records = std::make_unique<SpillBuckets>(work_dir, buckets, order_record_bytes, resident,
+                                               SpillBuckets::block_size_for(buckets, resident));
+  distribute_batch_bytes = size_t(std::clamp<uint64_t>(usable / 32, uint64_t(1) << 20, uint64_t(8) << 20));
+}
+
+// Vertices first_id, first_id + 1, ... (records of xyz + attributes): keys and buckets in
+// parallel, the records counting-sorted by bucket into a staging buffer (stable: file order
+// within a bucket), then one append per bucket.
+void StoreBuilder::State::distribute(std::span<const std::byte> bytes, uint64_t first_id) {
+  const auto t0 = std::chrono::steady_clock::now();
+  struct Accumulate {
+    double& total;
+    std::chrono::steady_clock::time_point t0;
+    ~Accumulate() { total += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); }
+  } accumulate{distribute_seconds, t0};
+  const uint32_t in_bytes = 12 + 4 * attribute_count, record_bytes = order_record_bytes;
+  const uint32_t buckets = key_records->bucket_count();
+  const size_t m = bytes.size() / in_bytes;
+  auto& keys = order_scratch_keys;
+  auto& bucket_of = order_scratch_buckets;
+  bucket_of.resize(m);
+  keys.resize(m);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      float p[3];
+      std::memcpy(p, bytes.data() + i * in_bytes, 12);
+      keys[i] = vertex_key(first_id + i, p);
+      bucket_of[i] = uint32_t(std::upper_bound(key_splits.begin(), key_splits.end(), keys[i]) - key_splits.begin());
+    }
+  });
+  order_staging.resize(m * record_bytes);
+  auto place = [&](uint64_t i, uint32_t at) {
+    std::byte* rec = order_staging.data() + size_t(at) * record_bytes;
+    const VertexRecord head{keys[i], uint32_t(first_id + i), {}};
+    std::memcpy(rec, &head, offsetof(VertexRecord, xyz));
+    std::memcpy(rec + offsetof(VertexRecord, xyz), bytes.data() + i * in_bytes, in_bytes);  // xyz, attributes
+  };
+  auto& start = order_scratch_start;
+  if (buckets > 1) {
+    counting_sort(m, buckets, [&](uint64_t i) { return bucket_of[i]; }, start, place);
+  } else {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) place(i, uint32_t(i));
+    });
+    start.assign({0, uint32_t(m)});
+  }
+  for (uint32_t b = 0; b < buckets; ++b)
+    if (start[b + 1] > start[b])
+      key_records->append(b, order_staging.data() + size_t(start[b]) * record_bytes, start[b + 1] - start[b]);
+}
+
+// Batches vertex records (from the reader or the pass-1 spill) into distribute() calls of
+// ~distribute_batch_bytes: enough work per call for every thread. flush = the last call.
+void StoreBuilder::State::distribute_batched(std::span<const std::byte> bytes, bool flush) {
+  const uint32_t in_bytes = 12 + 4 * attribute_count;
+  if (order_batch.empty() && bytes.size() >= distribute_batch_bytes) {
+    distribute(bytes, distributed);
+    distributed += bytes.size() / in_bytes;
+  } else if (!bytes.empty()) {
+    const size_t old = order_batch.size();
+    order_batch.resize(old + bytes.size());
+    std::memcpy(order_batch.data() + old, bytes.data(), bytes.size());
+  }
+  if (!order_batch.empty() && (flush || order_batch.size() >= distribute_batch_bytes)) {
+    distribute(order_batch, distributed);
+    distributed += order_batch.size() / in_bytes;
+    order_batch.clear();
+  }
+}
+
+uint64_t StoreBuilder::State::vertex_key(uint64_t id, const float* p) const {
+  return options.hilbert_order ? hilbert_key(grid, p) : id;
+}
+
 void StoreBuilder::State::order_vertices() {
   const auto t0 = std::chrono::steady_clock::now();
   ordered = true;
   const uint64_t n_in = input_vertices;
-  const uint32_t record_bytes = uint32_t(sizeof(VertexRecord)) + 4 * attribute_count;
-  // The vertex map (4 bytes per input vertex) lives until pass 3 ends.
-  const uint64_t map_bytes = 4 * n_in;
-  require(map_bytes + kMinWork, ("the vertex map of " + std::to_string(n_in) + " vertices").c_str());
   float box_lo[3], box_hi[3];
   for (int k = 0; k < 3; ++k) {
     const bool empty = !(lo[k] <= hi[k]);
     box_lo[k] = empty ? 0 : lo[k];
     box_hi[k] = empty ? 0 : hi[k];
   }
-  grid = make_hilbert_grid(box_lo, box_hi);
   outputs.plan(n_in, header.faces != MeshHeaderInfo::kUnknown ? header.faces
                      : merge_corners                          ? n_in / 3
                                                               : std::max(input_faces, 2 * n_in));
-  auto key_of = [&](uint64_t id, const float* p) { return options.hilbert_order ? hilbert_key(grid, p) : id; };
-
-  // Buckets sized so that one, with its two item arrays and the next bucket read ahead, fits
-  // the sort budget.
-  const uint64_t per_vertex = 2 * record_bytes + 2 * sizeof(OrderItem);
-  const uint64_t sort_budget = std::max(kMinWork, free_after(map_bytes) / 2);
-  const uint32_t buckets = uint32_t(std::max<uint64_t>(1, (n_in * per_vertex + sort_budget - 1) / sort_budget));
-  std::vector<uint64_t> splits;  // bucket of key k = number of splits ≤ k
-  if (buckets > 1) {
-    std::vector<uint64_t> keys(sample.xyz.size() / 3);
-    for (size_t i = 0; i < keys.size(); ++i) keys[i] = key_of(i * sample.stride, &sample.xyz[3 * i]);
-    std::sort(keys.begin(), keys.end());
-    for (uint32_t b = 1; b < buckets; ++b) splits.push_back(keys[keys.size() * b / buckets]);
+  if (key_records) {
+    // Distributed while read (the header's bounds): they must be those of the vertices read.
+    for (int k = 0; k < 3; ++k)
+      if (!(lo[k] == header.bounds_lo[k]) || !(hi[k] == header.bounds_hi[k]))
+        throw InputError("store build: the input changed while it was read (its vertex bounds differ)");
+    distribute_batched({}, true);
+  } else {
+    plan_order(n_in, box_lo, box_hi, sample.xyz, sample.stride);
+    vertex_records->drain(0, [&](std::span<const std::byte> bytes) { distribute_batched(bytes, false); });
+    distribute_batched({}, true);
+    vertex_records.reset();
   }
-  result.report.key_buckets = buckets;
-  const uint64_t resident = free_after(map_bytes + sort_budget);
-  SpillBuckets key_records(work_dir, buckets, record_bytes, resident, SpillBuckets::block_size_for(buckets, resident));
-
+  DefaultInitVector<std::byte>().swap(order_batch);
+  DefaultInitVector<std::byte>().swap(order_staging);
+  SpillBuckets& key_records_ = *key_records;
+  const uint32_t record_bytes = order_record_bytes;
+  const uint32_t buckets = key_records_.bucket_count();
   double trace[5] = {};
   auto tick = [&, t = std::chrono::steady_clock::now()](int i) mutable {
     const auto now = std::chrono::steady_clock::now();
     trace[i] += std::chrono::duration<double>(now - t).count();
     t = now;
   };
-  // Each block: keys and buckets in parallel, the records counting-sorted by bucket into a
-  // staging buffer (stable: file order within a bucket), then one append per bucket.
-  uint64_t next_id = 0;
-  DefaultInitVector<uint32_t> bucket_of, start;
-  DefaultInitVector<uint64_t> keys;
-  DefaultInitVector<std::byte> staging;
-  const uint32_t in_bytes = 12 + 4 * attribute_count;
-  auto distribute = [&](std::span<const std::byte> bytes) {
-    const size_t m = bytes.size() / in_bytes;
-    bucket_of.resize(m);
-    keys.resize(m);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 4096), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t i = r.begin(); i != r.end(); ++i) {
-        float p[3];
-        std::memcpy(p, bytes.data() + i * in_bytes, 12);
-        keys[i] = key_of(next_id + i, p);
-        bucket_of[i] = uint32_t(std::upper_bound(splits.begin(), splits.end(), keys[i]) - splits.begin());
-      }
-    });
-    staging.resize(m * record_bytes);
-    auto place = [&](uint64_t i, uint32_t at) {
-      std::byte* rec = staging.data() + size_t(at) * record_bytes;
-      const VertexRecord head{keys[i], uint32_t(next_id + i), {}};
-      std::memcpy(rec, &head, offsetof(VertexRecord, xyz));
-      std::memcpy(rec + offsetof(VertexRecord, xyz), bytes.data() + i * in_bytes, in_bytes);  // xyz, attributes
-    };
-    if (buckets > 1) {
-      counting_sort(m, buckets, [&](uint64_t i) { return bucket_of[i]; }, start, place);
-    } else {
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 4096), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) place(i, uint32_t(i));
-      });
-      start.assign({0, uint32_t(m)});
-    }
-    for (uint32_t b = 0; b < buckets; ++b)
-      if (start[b + 1] > start[b])
-        key_records.append(b, staging.data() + size_t(start[b]) * record_bytes, start[b + 1] - start[b]);
-    next_id += m;
-  };
-  // Blocks are gathered into batches of ~8 MiB: enough work per batch for every thread.
-  DefaultInitVector<std::byte> batch;
-  constexpr size_t kBatchBytes = size_t(8) << 20;
-  vertex_records->drain(0, [&](std::span<const std::byte> bytes) {
-    if (batch.empty() && bytes.size() >= kBatchBytes) return distribute(bytes);
-    const size_t old = batch.size();
-    batch.resize(old + bytes.size());
-    std::memcpy(batch.data() + old, bytes.data(), bytes.size());
-    if (batch.size() >= kBatchBytes) distribute(batch), batch.clear();
-  });
-  if (!batch.empty()) distribute(batch);
-  vertex_records.reset();
   tick(0);
 
   // Each bucket sorted, then emitted in order.
@@ -256,12 +297,12 @@ void StoreBuilder::State::order_vertices() {
   // Bucket b + 1 is read (from the disk, when spilled) while bucket b is sorted and emitted.
   DefaultInitVector<std::byte> next_records;
   std::future<void> next;
-  if (buckets > 0) next = std::async(std::launch::async, [&] { key_records.take(0, next_records); });
+  if (buckets > 0) next = std::async(std::launch::async, [&] { key_records_.take(0, next_records); });
   for (uint32_t b = 0; b < buckets; ++b) {
     tick(4);
     next.get();
     records.swap(next_records);
-    if (b + 1 < buckets) next = std::async(std::launch::async, [&, b] { key_records.take(b + 1, next_records); });
+    if (b + 1 < buckets) next = std::async(std::launch::async, [&, b] { key_records_.take(b + 1, next_records); });
     tick(1);
     const size_t n = records.size() / record_bytes;
     items.resize(n);
@@ -316,10 +357,11 @@ void StoreBuilder::State::order_vertices() {
     emitted += n;
     report("order", emitted, n_in);
   }
-  result.report.spilled_bytes += key_records.bytes_spilled();
+  result.report.spilled_bytes += key_records_.bytes_spilled();
   if (std::getenv("STREAMCVD_BUILD_TRACE"))
-    std::fprintf(stderr, "order: distribute %.3f take %.3f sort %.3f emit %.3f items %.3f\n", trace[0], trace[1], trace[2],
-                 trace[3], trace[4]);
+    std::fprintf(stderr, "order: distribute %.3f (during the read %.3f) take %.3f sort %.3f emit %.3f items %.3f\n", trace[0], distribute_seconds, trace[1],
+                 trace[2], trace[3], trace[4]);
+  key_records.reset();
   result.vertex_count = vertex_count;
   result.report.order_seconds = seconds_since(t0);
 }

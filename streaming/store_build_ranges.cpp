@@ -110,7 +110,9 @@ class RangePass {
   void cut_chunks(uint32_t r);
   void send_foreign(uint32_t r);
   void local_adjacency(uint32_t r);
+  struct RangeArrays;
   void write_range();
+  void write(RangeArrays& a);
   void chunk_stats(uint32_t r, const RangeInput& in);
   void close_chunk(uint64_t end_vertex, uint64_t end_face);
   void add_box(uint32_t v0, uint32_t v1, float* lo, float* hi);
@@ -129,12 +131,21 @@ class RangePass {
   uint32_t vb_ = 0, n_ = 0;
   uint64_t face_base_ = 0;
   DefaultInitVector<uint32_t> owned_start_;  // n + 1: local owner offsets
-  DefaultInitVector<uint32_t> local_tri_;    // foreign faces' corners, then the owned faces'
   DefaultInitVector<std::byte> foreign_in_;
   uint64_t foreign_count_ = 0;
-  DefaultInitVector<uint64_t> vf_off_, vv_off_, global_off_;
-  DefaultInitVector<uint32_t> vf_local_, vv_local_;
-  DefaultInitVector<uint8_t> flags_local_;
+  // The arrays a range produces, two sets: range r + 1 is built in one while the other is
+  // written out (by writer_), so the serial appends and the disk waits overlap the next range.
+  struct RangeArrays {
+    DefaultInitVector<uint32_t> tri;  // foreign faces' corners, then the owned faces'
+    DefaultInitVector<uint64_t> vf_off, vv_off;
+    DefaultInitVector<uint32_t> vf, vv;
+    DefaultInitVector<uint8_t> flags;
+    uint64_t foreign = 0;             // foreign faces at the front of tri
+    uint64_t vf_base = 0, vv_base = 0;  // global offsets of the range's first entries
+  };
+  RangeArrays arrays_[2];
+  RangeArrays* a_ = &arrays_[0];
+  std::future<void> writer_;
   std::vector<uint64_t> cuts_;
   DefaultInitVector<float> partial_;  // positions of a partly covered box block
   // Totals.
@@ -177,11 +188,11 @@ void RangePass::sort_owned(uint32_t r, const RangeInput& in) {
   n_ = end_of(r) - vb_;
   const uint32_t* f = reinterpret_cast<const uint32_t*>(in.faces.data());
   const uint64_t m = in.faces.size() / 12;
-  // local_tri_ = [foreign (filled later) | owned]; the owned part is placed now.
+  // a_->tri = [foreign (filled later) | owned]; the owned part is placed now.
   foreign_.take(r, foreign_in_);
   foreign_count_ = foreign_in_.size() / sizeof(ForeignFace);
-  local_tri_.resize(3 * (foreign_count_ + m));
-  uint32_t* owned = local_tri_.data() + 3 * foreign_count_;
+  a_->tri.resize(3 * (foreign_count_ + m));
+  uint32_t* owned = a_->tri.data() + 3 * foreign_count_;
   const uint32_t vb = vb_;
   counting_sort(
       m, n_, [&](uint64_t i) { return std::min({f[3 * i], f[3 * i + 1], f[3 * i + 2]}) - vb; }, owned_start_,
@@ -191,7 +202,7 @@ void RangePass::sort_owned(uint32_t r, const RangeInput& in) {
   const ForeignFace* foreign = reinterpret_cast<const ForeignFace*>(foreign_in_.data());
   tbb::parallel_for(tbb::blocked_range<uint64_t>(0, foreign_count_, 1 << 14), [&](const tbb::blocked_range<uint64_t>& q) {
     for (uint64_t i = q.begin(); i != q.end(); ++i)
-      for (int k = 0; k < 3; ++k) local_tri_[3 * i + k] = foreign[i].corner[k];
+      for (int k = 0; k < 3; ++k) a_->tri[3 * i + k] = foreign[i].corner[k];
   });
 }
 
@@ -205,7 +216,7 @@ void RangePass::cut_chunks(uint32_t r) {
 
 // Faces with a corner in a later range go there, in face id order.
 void RangePass::send_foreign(uint32_t r) {
-  const uint32_t* owned = local_tri_.data() + 3 * foreign_count_;
+  const uint32_t* owned = a_->tri.data() + 3 * foreign_count_;
   const uint64_t m = owned_start_[n_];
   const uint32_t ve = vb_ + n_;
   for (uint64_t i = 0; i < m; ++i) {
@@ -225,36 +236,49 @@ void RangePass::send_foreign(uint32_t r) {
 
 // Vertex→face and vertex→vertex CSR and flags of the range from its foreign + owned faces.
 void RangePass::local_adjacency(uint32_t) {
-  build_vertex_face_adjacency(std::span<const uint32_t>(local_tri_), vb_, n_, vf_off_, vf_local_);
-  flags_local_.resize(n_);
-  build_vertex_vertex_adjacency(std::span<const uint32_t>(local_tri_), vb_, std::span<const uint64_t>(vf_off_),
-                                std::span<const uint32_t>(vf_local_), vv_off_, vv_local_, std::span<uint8_t>(flags_local_));
+  build_vertex_face_adjacency(std::span<const uint32_t>(a_->tri), vb_, n_, a_->vf_off, a_->vf);
+  a_->flags.resize(n_);
+  build_vertex_vertex_adjacency(std::span<const uint32_t>(a_->tri), vb_, std::span<const uint64_t>(a_->vf_off),
+                                std::span<const uint32_t>(a_->vf), a_->vv_off, a_->vv, std::span<uint8_t>(a_->flags));
   // Local face indices → face ids (foreign faces first, then the owned ones from face_base_).
   const ForeignFace* foreign = reinterpret_cast<const ForeignFace*>(foreign_in_.data());
   const uint64_t fc = foreign_count_, base = face_base_;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, vf_local_.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& q) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, a_->vf.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& q) {
     for (size_t j = q.begin(); j != q.end(); ++j) {
-      const uint32_t l = vf_local_[j];
-      vf_local_[j] = l < fc ? foreign[l].face : uint32_t(base + (l - fc));
+      const uint32_t l = a_->vf[j];
+      a_->vf[j] = l < fc ? foreign[l].face : uint32_t(base + (l - fc));
     }
   });
 }
 
-void RangePass::write_range() {
-  const uint64_t m = owned_start_[n_];
-  triangles_.append(std::span<const uint32_t>(local_tri_.data() + 3 * foreign_count_, 3 * m));
-  auto write_offsets = [&](ArrayOutput& out, const DefaultInitVector<uint64_t>& local, uint64_t base) {
-    global_off_.resize(n_);
-    for (uint32_t i = 0; i < n_; ++i) global_off_[i] = base + local[i];
-    out.append(std::span<const uint64_t>(global_off_));
+// Appends one range's arrays to the outputs (on the writer thread), offsets made global.
+void RangePass::write(RangeArrays& a) {
+  const uint64_t owned = a.tri.size() / 3 - a.foreign;
+  triangles_.append(std::span<const uint32_t>(a.tri.data() + 3 * a.foreign, 3 * owned));
+  auto write_offsets = [](ArrayOutput& out, DefaultInitVector<uint64_t>& local, uint64_t base) {
+    local.pop_back();  // the entry past the range is the next range's first
+    for (uint64_t& o : local) o += base;
+    out.append(std::span<const uint64_t>(local));
   };
-  write_offsets(vf_offsets_, vf_off_, vf_base_);
-  vf_.append(std::span<const uint32_t>(vf_local_));
-  write_offsets(vv_offsets_, vv_off_, vv_base_);
-  vv_.append(std::span<const uint32_t>(vv_local_));
-  flags_.append(std::span<const uint8_t>(flags_local_));
-  vf_base_ += vf_local_.size();
-  vv_base_ += vv_local_.size();
+  write_offsets(vf_offsets_, a.vf_off, a.vf_base);
+  vf_.append(std::span<const uint32_t>(a.vf));
+  write_offsets(vv_offsets_, a.vv_off, a.vv_base);
+  vv_.append(std::span<const uint32_t>(a.vv));
+  flags_.append(std::span<const uint8_t>(a.flags));
+}
+
+// Hands the current range's arrays to the writer and switches to the other set (waiting for
+// the writer to be done with it).
+void RangePass::write_range() {
+  a_->foreign = foreign_count_;
+  a_->vf_base = vf_base_;
+  a_->vv_base = vv_base_;
+  vf_base_ += a_->vf.size();
+  vv_base_ += a_->vv.size();
+  if (writer_.valid()) writer_.get();
+  RangeArrays& done = *a_;
+  writer_ = std::async(std::launch::async, [this, &done] { write(done); });
+  a_ = a_ == &arrays_[0] ? &arrays_[1] : &arrays_[0];
 }
 
 // Grows lo/hi by the positions of store vertices [v0, v1): whole blocks from the block boxes of
@@ -320,8 +344,8 @@ void RangePass::chunk_stats(uint32_t, const RangeInput& in) {
     tbb::parallel_for(tbb::blocked_range<uint32_t>(s0, s1, 4096), [&](const tbb::blocked_range<uint32_t>& q) {
       Part& p = parts.local();
       for (uint32_t v = q.begin(); v != q.end(); ++v)
-        for (uint64_t j = vf_off_[v - vb_]; j != vf_off_[v - vb_ + 1]; ++j)
-          if (vf_local_[j] < chunk_face_begin) p.halo.push_back(vf_local_[j]);
+        for (uint64_t j = a_->vf_off[v - vb_]; j != a_->vf_off[v - vb_ + 1]; ++j)
+          if (a_->vf[j] < chunk_face_begin) p.halo.push_back(a_->vf[j]);
     });
     add_box(s0, s1, open_.lo, open_.hi);
     for (Part& p : parts) open_.halo.insert(open_.halo.end(), p.halo.begin(), p.halo.end());
@@ -381,13 +405,14 @@ void RangePass::run() {
     tick(3);
     local_adjacency(r);
     tick(4);
-    write_range();
-    tick(5);
     chunk_stats(r, in);
     tick(6);
+    write_range();
+    tick(5);
     face_base_ += owned_start_[n_];
     s_.report("adjacency", r + 1, s_.range_count);
   }
+  if (writer_.valid()) writer_.get();
   finish();
   if (std::getenv("STREAMCVD_BUILD_TRACE"))
     std::fprintf(stderr, "ranges: wait %.3f sort %.3f cut %.3f foreign %.3f adjacency %.3f write %.3f chunks %.3f\n",

@@ -23,8 +23,9 @@ namespace store_build {
 inline constexpr uint64_t kFixedOverhead = uint64_t(24) << 20;
 /// Smallest working set a pass is given (a bucket being sorted, a vertex range).
 inline constexpr uint64_t kMinWork = uint64_t(8) << 20;
-/// Working bytes per vertex of a pass-4 range (owned and foreign faces, local CSR, outputs).
-inline constexpr uint64_t kRangeBytesPerVertex = 200;
+/// Working bytes per vertex of a pass-4 range: owned and foreign faces, the local CSR and flags
+/// (two sets: one being written while the next is built), the next range's input read ahead.
+inline constexpr uint64_t kRangeBytesPerVertex = 320;
 
 /// Positions of every stride-th input vertex, at most kCapacity of them: when full, every other
 /// sample is dropped and the stride doubles. Deterministic; the key ranges of pass 2 come from
@@ -74,6 +75,11 @@ struct StoreBuilder::State {
   State(StoreOutputs& o, const StoreBuildOptions& opt, std::function<void(const BuildProgress&)> p);
 
   // The passes (one function each).
+  void plan_order(uint64_t n_in, const float* box_lo, const float* box_hi, std::span<const float> sample_xyz,
+                  uint64_t sample_stride);            // pass 2: grid, key buckets
+  void distribute(std::span<const std::byte> vertex_records, uint64_t first_id);  // pass 2
+  void distribute_batched(std::span<const std::byte> vertex_records, bool flush);
+  uint64_t vertex_key(uint64_t id, const float* p) const;
   void order_vertices();                             // pass 2
   void begin_faces();                                // pass 3
   void add_faces(std::span<const uint32_t> corners);  // pass 3, one block in file order
@@ -83,7 +89,11 @@ struct StoreBuilder::State {
 
   void report(const char* stage, uint64_t done, uint64_t total) const {
     if (progress) progress({stage, done, total});
+    if (trace) note_memory(stage);
   }
+  /// STREAMCVD_BUILD_TRACE=1: per-stage peaks of the resident anonymous memory on stderr.
+  bool trace = false;
+  void note_memory(const char* stage) const;
   /// Bytes still free for a new structure when `held` bytes are in use (huge when unlimited).
   uint64_t free_after(uint64_t held) const { return held >= usable ? 0 : usable - held; }
   /// Throws InputError when `need` bytes of working memory do not fit under the limit.
@@ -108,13 +118,24 @@ struct StoreBuilder::State {
   uint64_t input_vertices = 0;
   float lo[3], hi[3];
   store_build::PositionSample sample;
+  std::vector<float> record_scratch;  ///< interleaved xyz + attributes of one block
   std::unique_ptr<SpillBuckets> raw_faces;
   uint64_t input_faces = 0;
   ReadStats read;
 
-  // Pass 2: the vertex order.
+  // Pass 2: the vertex order. With bounds in the header the vertices are distributed to the key
+  // buckets as they are read; otherwise from the pass-1 spill once all are known.
   bool ordered = false;
   HilbertGrid grid;
+  std::unique_ptr<SpillBuckets> key_records;
+  std::vector<uint64_t> key_splits;
+  uint32_t order_record_bytes = 0;
+  size_t distribute_batch_bytes = 0;
+  uint64_t distributed = 0;  ///< vertices handed to distribute()
+  double distribute_seconds = 0;
+  DefaultInitVector<std::byte> order_batch, order_staging;
+  DefaultInitVector<uint64_t> order_scratch_keys;
+  DefaultInitVector<uint32_t> order_scratch_buckets, order_scratch_start;
   DefaultInitVector<uint32_t> new_of_old;  ///< input vertex → store vertex
   uint32_t vertex_count = 0;               ///< store vertices
 

@@ -51,14 +51,13 @@ ProgressLine::~ProgressLine() { finish(); }
 void ProgressLine::update(const BuildProgress& p) {
   if (!active_) return;
   const double now = now_seconds();
-  if (stage_ != p.stage) {
-    stage_ = p.stage;
-    stage_start_ = now;
-  } else if (now - last_draw_ < 0.1 && p.done < p.total) {
-    return;
-  }
+  // Stages may interleave (the reader reports bytes while the builder reports faces): each keeps
+  // its own start time, and the line is redrawn at most 10 times a second.
+  auto started = stage_starts_.try_emplace(p.stage, now).first;
+  if (now - last_draw_ < 0.1 && p.done < p.total) return;
+  stage_ = p.stage;
   last_draw_ = now;
-  const double elapsed = std::max(1e-6, now - stage_start_);
+  const double elapsed = std::max(1e-6, now - started->second);
   const bool bytes = stage_ == "read";
   std::string line = command_ + ": " + stage_ + " ";
   char buf[160];

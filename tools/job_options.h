@@ -6,6 +6,7 @@
 #include <tbb/global_control.h>
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 
@@ -46,7 +47,8 @@ class ProgressLine {
   std::string command_;
   bool active_ = false;
   std::string stage_;
-  double stage_start_ = 0, last_draw_ = 0;
+  std::map<std::string, double> stage_starts_;
+  double last_draw_ = 0;
   size_t width_ = 0;
 };
 

@@ -133,10 +133,27 @@ uint64_t records_bound(const MeshHeaderInfo& h, uint64_t count, uint64_t min_byt
 
 class Collector final : public MeshSink {
  public:
-  Collector(std::string name, MeshWithAttributes& out, bool keep_attributes)
-      : name_(std::move(name)), out_(out), keep_attributes_(keep_attributes), merger_(out.mesh.positions) {}
+  Collector(std::string name, MeshWithAttributes& out, bool keep_attributes, uint64_t memory_limit)
+      : name_(std::move(name)),
+        out_(out),
+        keep_attributes_(keep_attributes),
+        memory_limit_(memory_limit),
+        merger_(out.mesh.positions) {}
+
+  // Throws when the soup would outgrow the memory limit.
+  void check_memory(uint64_t vertices, uint64_t triangles) const {
+    const uint64_t bytes = 12 * vertices + 12 * triangles + (merge_ ? 16 * vertices : 0);
+    if (memory_limit_ == 0 || bytes <= memory_limit_) return;
+    throw InputError(error_at(name_, "the whole mesh needs more than --memory " + format_size(memory_limit_) +
+                                         " in RAM for this command (" + std::to_string(vertices) + " vertices, " +
+                                         std::to_string(triangles) + " triangles); raise --memory, or ingest it into "
+                                         "a store and give the store"));
+  }
+  static std::string format_size(uint64_t b) { return std::to_string((b + (1 << 20) - 1) >> 20) + " MiB"; }
 
   void begin(const MeshHeaderInfo& header) override {
+    if (header.vertices != MeshHeaderInfo::kUnknown && header.faces != MeshHeaderInfo::kUnknown)
+      check_memory(header.vertices, header.faces);
     merge_ = header.corners_by_value;
     out_.attributes = header.attributes;
     MeshBuffers& m = out_.mesh;
@@ -161,6 +178,7 @@ class Collector final : public MeshSink {
 
   void vertices(std::span<const float> xyz, std::span<const float> attributes) override {
     MeshBuffers& m = out_.mesh;
+    check_memory(m.positions.size() / 3 + xyz.size() / 3, m.triangles.size() / 3);
     if (m.positions.size() + xyz.size() > m.positions.capacity()) page_in_.stop();  // it will move
     if (keep_attributes_) out_.values.insert(out_.values.end(), attributes.begin(), attributes.end());
     if (!merge_) {
@@ -177,6 +195,7 @@ class Collector final : public MeshSink {
   }
 
   void triangles(std::span<const uint32_t> corners) override {
+    check_memory(out_.mesh.positions.size() / 3, out_.mesh.triangles.size() / 3 + corners.size() / 3);
     if (!merge_) {
       std::vector<uint32_t>& t = out_.mesh.triangles;
       if (t.size() + corners.size() > t.capacity()) page_in_.stop();  // it will move
@@ -197,6 +216,7 @@ class Collector final : public MeshSink {
   std::string name_;  // for messages
   MeshWithAttributes& out_;
   bool keep_attributes_;
+  uint64_t memory_limit_;
   bool merge_ = false;
   VertexMerger merger_;
   uint64_t corners_seen_ = 0;
@@ -206,7 +226,7 @@ class Collector final : public MeshSink {
 MeshWithAttributes collect(const std::string& path, const ReadOptions& options, bool keep_attributes) {
   const std::string name = path == "-" ? "stdin" : path;  // as InputStream names it
   MeshWithAttributes result;
-  Collector sink(name, result, keep_attributes);
+  Collector sink(name, result, keep_attributes, options.memory_limit);
   read_mesh_stream(path, sink, options);
   validate_soup(name, result.mesh);
   return result;
@@ -214,8 +234,10 @@ MeshWithAttributes collect(const std::string& path, const ReadOptions& options, 
 
 }  // namespace
 
-MeshBuffers read_mesh(const std::string& path) {
-  ReadOptions options;
+MeshBuffers read_mesh(const std::string& path) { return read_mesh(path, ReadOptions{}); }
+
+MeshBuffers read_mesh(const std::string& path, const ReadOptions& read) {
+  ReadOptions options = read;
   options.attributes = ReadOptions::Attributes::None;
   return std::move(collect(path, options, false).mesh);
 }

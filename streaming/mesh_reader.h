@@ -99,6 +99,9 @@ struct ReadOptions {
   std::vector<std::string> attribute_names;  ///< with Attributes::Named
   /// Called between blocks with the (raw) bytes consumed so far and header.input_bytes.
   std::function<void(uint64_t bytes, uint64_t total)> progress;
+  /// read_mesh / read_mesh_with_attributes only: bytes the whole soup may take in RAM (0 = no
+  /// limit); past it they throw InputError naming the limit instead of growing further.
+  uint64_t memory_limit = 0;
 };
 
 /// Format from the file name (".ply", ".obj", ".off", ".stl", each optionally + ".zst",
@@ -126,6 +129,8 @@ struct MeshWithAttributes {
 /// read_mesh_stream (STL corners merged here, in order of first appearance), then checked by
 /// validate_soup. Same errors as read_mesh_stream.
 MeshBuffers read_mesh(const std::string& path);
+/// Same, with `options` (attributes are not kept).
+MeshBuffers read_mesh(const std::string& path, const ReadOptions& options);
 /// Same, keeping the vertex attributes selected by `options` (its block size changes only the
 /// memory of the read, never the result).
 MeshWithAttributes read_mesh_with_attributes(const std::string& path, const ReadOptions& options = {});

@@ -123,6 +123,29 @@ TEST_F(Ingest, MemoryBelowTheMinimumIsRefusedNamingIt) {
   EXPECT_EQ(r.exit_code, 2) << r.describe();
 }
 
+// Every command that reads a mesh takes --memory: a soup that does not fit is refused with a
+// one-line error naming the limit (exit 2, never an OOM kill); info streams into a temporary
+// store in anonymous work files instead, and gives the same figures.
+TEST_F(Ingest, CommandsThatReadAMeshHonourTheMemoryLimit) {
+  for (const char* command : {"quality", "render", "distance"}) {
+    SCOPED_TRACE(command);
+    std::vector<std::string> args = {command, *torus_};
+    if (std::string(command) == "distance") args.push_back(*torus_);
+    if (std::string(command) == "render") args.insert(args.end(), {"-o", (out_ / "x.png").string()});
+    args.insert(args.end(), {"--memory", "4M"});
+    CliResult r = run_cli(args);
+    EXPECT_EQ(r.exit_code, 2) << r.describe();
+    test::expect_one_line_error(r, *torus_);
+    EXPECT_NE(r.err.find("needs more than --memory "), std::string::npos) << r.err;
+  }
+  CliResult small = run_cli({"info", *torus_, "--json", "--memory", "48M", "--work-dir", out_.string()});
+  CliResult large = run_cli({"info", *torus_, "--json"});
+  ASSERT_EQ(small.exit_code, 0) << small.describe();
+  ASSERT_EQ(large.exit_code, 0) << large.describe();
+  EXPECT_EQ(small.out, large.out);
+  EXPECT_TRUE(test::entries(out_).empty());  // the work files were anonymous
+}
+
 TEST_F(Ingest, ProgressOnlyWhenAsked) {
   // stderr is a file here, not a terminal: no progress line unless --progress always.
   CliResult r = run_cli({"ingest", *torus_, (out_ / "s").string()});

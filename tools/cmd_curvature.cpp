@@ -17,6 +17,7 @@
 #include "streaming/output_file.h"
 #include "streaming/store.h"
 #include "tools/commands.h"
+#include "tools/job_options.h"
 
 namespace streamcvd::cli {
 namespace {
@@ -105,6 +106,7 @@ void add_curvature_command(CLI::App& app) {
     bool ascii = false;
     int threads = 0;
     CurvatureOptions options;
+    JobOptions job;
   };
   auto args = std::make_shared<Args>();
   auto* cmd = app.add_subcommand("curvature", "Principal curvatures and directions per vertex (jet fitting) to a PLY");
@@ -123,6 +125,7 @@ void add_curvature_command(CLI::App& app) {
   cmd->add_option("--threads", args->threads, "Worker threads (0: every core)")
       ->capture_default_str()
       ->check(CLI::Range(0, 4096));
+  add_job_options(cmd, args->job, /*with_threads=*/false);
   cmd->callback([args] {
     if (format_from_path(args->output) != MeshFormat::Ply)
       throw InputError(error_at(args->output, "curvature: the output must be a .ply (or .ply.zst) file"));
@@ -130,7 +133,10 @@ void add_curvature_command(CLI::App& app) {
     if (args->threads > 0)
       limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, args->threads);
     const double t0 = now_seconds();
-    const MeshStore store = streamcvd::load_mesh_or_store(args->input);
+    StoreBuildOptions store_options;
+    store_options.memory_limit = memory_limit(args->job);
+    store_options.work_directory = args->job.work_dir;
+    const MeshStore store = streamcvd::load_mesh_or_store(args->input, store_options);
     const MeshView view = store.view();
     const double t1 = now_seconds();
     const std::clock_t cpu0 = std::clock();

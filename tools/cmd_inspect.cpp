@@ -13,25 +13,10 @@
 #include "streaming/memory_budget.h"
 #include "tools/commands.h"
 #include "tools/job_options.h"
+#include "tools/measure.h"
 
 namespace streamcvd::cli {
 namespace {
-
-/// A mesh file read into RAM, or a store directory mapped: either way a soup view.
-struct LoadedSoup {
-  std::optional<MeshBuffers> buffers;
-  std::optional<MeshStore> store;
-  TriangleSoupView view() const { return buffers ? buffers->view() : store->view().soup(); }
-};
-
-LoadedSoup load_soup(const std::string& path) {
-  LoadedSoup loaded;
-  if (is_store_directory(path))
-    loaded.store = MeshStore::open(path), loaded.store->validate_all();
-  else
-    loaded.buffers = read_mesh(path);
-  return loaded;
-}
 
 nlohmann::json topology_json(const TopologyStats& s) {
   return {{"vertices", s.vertices},
@@ -143,8 +128,11 @@ void add_quality_command(CLI::App& app) {
   auto json = std::make_shared<bool>(false);
   cmd->add_option("input", *path, "Mesh file or store directory")->required();
   cmd->add_flag("--json", *json, "Print JSON instead of text");
+  auto job = std::make_shared<JobOptions>();
+  add_job_options(cmd, *job);
   cmd->callback([=] {
-    LoadedSoup mesh = load_soup(*path);
+    auto threads = thread_limit(*job);
+    LoadedMesh mesh = load_mesh_or_store(*path, memory_limit(*job));
     QualityStats q = compute_quality(mesh.view());
     if (*json) {
       nlohmann::json j = quality_json(q);
@@ -165,9 +153,12 @@ void add_convert_command(CLI::App& app) {
   cmd->add_option("input", *in, "Mesh file or store directory")->required();
   cmd->add_option("output", *out, "Output mesh file (.ply .obj .off .stl, optionally + .zst)")->required();
   cmd->add_flag("--ascii", *ascii, "Write ascii PLY instead of binary little-endian");
+  auto job = std::make_shared<JobOptions>();
+  add_job_options(cmd, *job);
   cmd->callback([=] {
+    auto threads = thread_limit(*job);
     double t0 = now_seconds();
-    LoadedSoup mesh = load_soup(*in);
+    LoadedMesh mesh = load_mesh_or_store(*in, memory_limit(*job));
     WriteOptions options;
     options.ascii = *ascii;
     write_mesh(*out, mesh.view(), options);

@@ -11,6 +11,7 @@
 #include "streaming/output_file.h"
 #include "streaming/png_writer.h"
 #include "tools/commands.h"
+#include "tools/job_options.h"
 #include "tools/measure.h"
 
 namespace streamcvd::cli {
@@ -52,12 +53,15 @@ void print_side(const char* label, const OneSidedDistance& s, const DistanceRepo
 
 }  // namespace
 
-LoadedMesh load_mesh_or_store(const std::string& path) {
+LoadedMesh load_mesh_or_store(const std::string& path, uint64_t memory_limit) {
   LoadedMesh loaded;
-  if (is_store_directory(path))
+  if (is_store_directory(path)) {
     loaded.store = MeshStore::open(path), loaded.store->validate_all();
-  else
-    loaded.buffers = read_mesh(path);
+  } else {
+    ReadOptions read;
+    read.memory_limit = memory_limit;
+    loaded.buffers = read_mesh(path, read);
+  }
   return loaded;
 }
 
@@ -114,6 +118,7 @@ void add_distance_command(CLI::App& app) {
     std::string a, b;
     uint64_t samples = 1'000'000, seed = 1;
     bool json = false;
+    JobOptions job;
   };
   auto args = std::make_shared<Args>();
   auto* cmd = app.add_subcommand("distance", "Two-sided Metro distance between two surfaces (A is the reference)");
@@ -124,13 +129,15 @@ void add_distance_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed of the face samples (same seed, same figures)")->capture_default_str();
   cmd->add_flag("--json", args->json, "Print JSON instead of text");
+  add_job_options(cmd, args->job);
   cmd->callback([args] {
+    auto threads = thread_limit(args->job);
     if (args->samples > kMaxDistanceSamples)
       throw InputError("--samples: " + std::to_string(args->samples) + " is above the limit of " +
                        std::to_string(kMaxDistanceSamples) + " samples per side (each costs ~28 bytes)");
     double t0 = now_seconds();
-    LoadedMesh a = load_mesh_or_store(args->a);
-    LoadedMesh b = load_mesh_or_store(args->b);
+    LoadedMesh a = load_mesh_or_store(args->a, memory_limit(args->job) / 2);
+    LoadedMesh b = load_mesh_or_store(args->b, memory_limit(args->job) / 2);
     double t1 = now_seconds();
     DistanceReport d = measure_distance(args->a, a.view(), args->b, b.view(), args->samples, args->seed);
     double t2 = now_seconds();
@@ -168,12 +175,14 @@ void add_render_command(CLI::App& app) {
   struct Args {
     std::string input, output, view = "30,20", size = "800x800";
     bool wireframe = false;
+    JobOptions job;
   };
   auto args = std::make_shared<Args>();
   auto* cmd = app.add_subcommand("render", "Render a mesh to a PNG (software z-buffer, flat shading, headlight)");
   cmd->add_option("input", args->input, "Mesh file or store directory")->required();
   cmd->add_option("-o,--output", args->output, "Output PNG file")->required();
   cmd->add_flag("--wireframe", args->wireframe, "Draw the visible edges as dark lines over the shading");
+  add_job_options(cmd, args->job);
   cmd->add_option("--view", args->view, "Camera azimuth,elevation in degrees (about +y, above the xz plane)")
       ->capture_default_str();
   cmd->add_option("--size", args->size, "Image size WIDTHxHEIGHT in pixels")->capture_default_str();
@@ -184,7 +193,8 @@ void add_render_command(CLI::App& app) {
     options.wireframe = args->wireframe;
     install_signal_cleanup();
     double t0 = now_seconds();
-    LoadedMesh mesh = load_mesh_or_store(args->input);
+    auto threads = thread_limit(args->job);
+    LoadedMesh mesh = load_mesh_or_store(args->input, memory_limit(args->job));
     RgbImage image;
     try {
       image = render_mesh(mesh.view(), options);

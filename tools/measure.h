@@ -24,8 +24,9 @@ struct LoadedMesh {
   TriangleSoupView view() const { return buffers ? buffers->view() : store->view().soup(); }
 };
 
-/// Reads a mesh file or maps a store directory. Throws InputError naming the path.
-LoadedMesh load_mesh_or_store(const std::string& path);
+/// Reads a mesh file (its soup in RAM, in file order, refused past --memory) or maps a store
+/// directory (every chunk validated). Throws InputError naming the path.
+LoadedMesh load_mesh_or_store(const std::string& path, uint64_t memory_limit = 0);
 
 /// surface_distance(a, b) with A the reference, errors rephrased to name the file they concern:
 /// "<file>: surface distance: <problem>". Throws InputError.

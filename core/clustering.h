@@ -64,6 +64,8 @@ struct ClusteringOptions {
   uint32_t region_vertices = 0; ///< parallel loop: target vertices per region (0 = automatic)
   /// Called after every loop with (constrained pass?, loop number, items moved); for progress.
   std::function<void(bool, uint32_t, uint64_t)> on_loop;
+  /// Where the loops' arrays sized by V live (null = RAM; the out-of-core pipeline's WorkSpace).
+  ArrayStorage* storage = nullptr;
 };
 
 struct ClusteringReport {
@@ -90,6 +92,7 @@ struct LoopOptions {
   bool deterministic = false;   ///< parallel loop whose output is the same for every thread count
   uint32_t region_vertices = 0; ///< parallel loop: target vertices per region (0 = automatic)
   std::function<void(bool, uint32_t, uint64_t)> on_loop;
+  ArrayStorage* storage = nullptr;  ///< arrays sized by V (null = RAM)
 };
 
 /// Recomputes every cluster's isotropic sums from the labels (fixed order: deterministic).

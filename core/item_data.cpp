@@ -10,7 +10,7 @@
 
 namespace streamcvd {
 
-ItemData compute_item_data(const MeshView& mesh, std::span<const float> density) {
+ItemData compute_item_data(const MeshView& mesh, std::span<const float> density, ArrayStorage& storage) {
   const uint32_t V = mesh.vertex_count();
   ItemData items;
   if (V > 0) {
@@ -22,9 +22,9 @@ ItemData compute_item_data(const MeshView& mesh, std::span<const float> density)
       }
     for (int c = 0; c < 3; ++c) items.origin[c] = 0.5 * (lo[c] + hi[c]);
   }
-  items.weight.assign(V, 0.0);
-  std::vector<double> area(V, 0.0);
-  items.centroid.assign(size_t(3) * V, 0.0f);
+  items.weight = LargeArray<double>(V, storage, "item weights");
+  LargeArray<double> area(V, storage, "item areas");
+  items.centroid = LargeArray<float>(size_t(3) * V, storage, "item centroids");
   const float* P = mesh.positions.data();
   const uint32_t* T = mesh.triangles.data();
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, V, 4096), [&](const tbb::blocked_range<uint32_t>& r) {
@@ -64,7 +64,7 @@ ItemData compute_item_data(const MeshView& mesh, std::span<const float> density)
   return items;
 }
 
-void attach_tensors(ItemData& items, std::vector<float> tensors) {
+void attach_tensors(ItemData& items, LargeArray<float> tensors) {
   items.tensor = std::move(tensors);
   items.sum_tensor_norm2 = 0;
   for (size_t v = 0; v < items.weight.size(); ++v) {

@@ -70,6 +70,12 @@ class LargeArray {
     data_ = nullptr;
     size_ = 0;
   }
+  /// A copy in the same storage (explicit: these arrays are large).
+  LargeArray clone() const {
+    LargeArray out(size_, *storage_);
+    if (size_ > 0) std::memcpy(out.data_, data_, size_ * sizeof(T));
+    return out;
+  }
   void fill(T value) {
     for (size_t i = 0; i < size_; ++i) data_[i] = value;
   }
@@ -95,5 +101,13 @@ class LargeArray {
   T* data_ = nullptr;
   size_t size_ = 0;
 };
+
+/// A LargeArray holding a copy of `values`.
+template <typename T>
+LargeArray<std::remove_const_t<T>> large_array_of(std::span<T> values, ArrayStorage& storage = ram_storage()) {
+  LargeArray<std::remove_const_t<T>> out(values.size(), storage);
+  if (!values.empty()) std::memcpy(out.data(), values.data(), values.size_bytes());
+  return out;
+}
 
 }  // namespace streamcvd

@@ -248,11 +248,11 @@ std::vector<float> anisotropic_tensors(const MeshView& mesh, const Curvature& cu
   return anisotropic_field(mesh, curvature, options).tensors;
 }
 
-std::vector<float> vertex_quadrics(const MeshView& mesh, std::span<const double, 3> origin) {
+LargeArray<float> vertex_quadrics(const MeshView& mesh, std::span<const double, 3> origin, ArrayStorage& storage) {
   const uint32_t V = mesh.vertex_count();
   if (V > 0 && mesh.vertex_face_offsets.size() != size_t(V) + 1)
     throw InputError("vertex quadrics: mesh has no vertex-face adjacency");
-  std::vector<float> q(10 * size_t(V), 0.0f);
+  LargeArray<float> q(10 * size_t(V), storage, "vertex quadrics");
   const float* P = mesh.positions.data();
   const uint32_t* T = mesh.triangles.data();
   const uint64_t F = mesh.face_count();

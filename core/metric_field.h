@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "core/curvature.h"
+#include "core/large_array.h"
 #include "core/mesh_view.h"
 
 namespace streamcvd {
@@ -95,7 +96,9 @@ std::vector<float> anisotropic_tensors(const MeshView& mesh, const Curvature& cu
 /// 10 floats per vertex: A_xx, A_xy, A_xz, A_yy, A_yz, A_zz, b_x, b_y, b_z, c (A in length², b in
 /// length³, c in length⁴); summed in double. Zero-area or non-finite faces and isolated vertices
 /// contribute zeros. O(F) (each face evaluated by its 3 vertices); TBB-parallel, deterministic.
-std::vector<float> vertex_quadrics(const MeshView& mesh, std::span<const double, 3> origin);
+/// The array (40 bytes per vertex) comes from `storage`.
+LargeArray<float> vertex_quadrics(const MeshView& mesh, std::span<const double, 3> origin,
+                                  ArrayStorage& storage = ram_storage());
 
 /// Minimiser of Q(x) = xᵀAx + 2bᵀx + c, solved around `centroid` with a truncated pseudo-inverse:
 /// x = centroid + Σ_{λ_k > t·λmax} u_k u_kᵀ (−b − A·centroid) / λ_k (eigen-decomposition of the

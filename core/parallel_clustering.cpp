@@ -13,6 +13,16 @@
 // committed and some loop commits none: the pass stops. Nothing is evaluated against a stale
 // snapshot of a cluster (no Jacobi-style batch moves), which could raise the energy.
 //
+// Visits (DESIGN.md §4). A round visits every region with candidates; a visit sweeps the
+// region's candidate vertices again and again until a sweep moves nothing (or kMaxSweeps), so a
+// region converges while its data is hot in the caches (and, out of core, resident) instead of
+// being swept once per global loop. Moves that list vertices of other regions go to those
+// regions' lists between rounds. Rounds repeat until a round moves fewer than stop_fraction·V
+// items. The modified-clusters skip is kept through stamps: a vertex is tested in a sweep only if
+// its cluster changed since its region's previous sweep began. Default mode stamps changes with
+// the global sweep clock (conservative: a change is never missed); deterministic mode with
+// per-phase, per-region sweep numbers, which depend on nothing but the region's own work.
+//
 // Holding a cluster: label[v] changes only while both its old and its new cluster are held, so
 // a thread holding cluster a sees a fixed member set of a. That is also what the constrained
 // pass's 1-ring test needs: it asks which neighbours of v are in a (held); moves between other
@@ -73,8 +83,8 @@ struct alignas(64) ClusterLock {
 // neighbours lie in its own range.
 struct Partition {
   std::vector<uint32_t> begin;  // regions + 1 boundaries, from 0 to V
-  std::vector<uint8_t> interior;
-  std::vector<uint16_t> region;  // region of each vertex (at most kMaxRegions regions)
+  LargeArray<uint8_t> interior;
+  LargeArray<uint16_t> region;  // region of each vertex (at most kMaxRegions regions)
   uint32_t size() const { return uint32_t(begin.size() - 1); }
 };
 
@@ -139,11 +149,11 @@ std::vector<uint32_t> shifted_bounds(const std::vector<uint32_t>& b) {
   return s;
 }
 
-Partition make_partition(const MeshView& mesh, std::vector<uint32_t> bounds) {
+Partition make_partition(const MeshView& mesh, std::vector<uint32_t> bounds, ArrayStorage& storage) {
   Partition p;
   p.begin = std::move(bounds);
-  p.interior.assign(mesh.vertex_count(), 0);
-  p.region.assign(mesh.vertex_count(), 0);
+  p.interior = LargeArray<uint8_t>(mesh.vertex_count(), storage, "region interior marks");
+  p.region = LargeArray<uint16_t>(mesh.vertex_count(), storage, "vertex regions");
   for_each_region(p.size(), [&](uint32_t r) {
     const uint32_t first = p.begin[r], last = p.begin[r + 1];
     for (uint32_t v = first; v < last; ++v) {
@@ -161,17 +171,22 @@ struct RegionWork {
   std::vector<uint32_t> cand;       // candidates in the region's range; after the phase, the kept ones
   std::vector<uint32_t> outbox;     // vertices of other regions to put on the candidate list
   std::vector<uint32_t> postponed;  // vertices with an edge left for the serial pass
-  size_t start = 0;                 // the sweep tests cand[start…] (earlier entries were tested)
-  uint64_t moves = 0;
+  uint32_t last_sweep = 1;          // stamp of the region's previous sweep (see the skip rule)
+  uint64_t moves = 0;               // moves of the current visit
+  uint32_t sweeps = 0;              // sweeps of the current visit
 };
+
+// Sweeps of one visit at most: a region that still moves after this many waits for the next
+// round (its neighbours' frontiers have changed meanwhile anyway).
+constexpr uint32_t kMaxSweeps = 64;
 
 template <bool kAniso, bool kOffsets>
 class ParallelLoop {
  public:
   ParallelLoop(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels, ClusterState& state,
-               const LoopOptions& options)
-      : mesh_(mesh), items_(items), labels_(labels.data()), state_(state), options_(options),
-        K_(state.cluster_count()), changed_in_(K_), owner_(K_), listed_(mesh.vertex_count(), 0) {
+               const LoopOptions& options, ArrayStorage& storage)
+      : mesh_(mesh), items_(items), labels_(labels.data()), state_(state), options_(options), storage_(storage),
+        K_(state.cluster_count()), changed_in_(K_), owner_(K_), listed_(mesh.vertex_count(), storage, "candidate marks") {
     if (!options.deterministic) locks_ = std::vector<ClusterLock>(K_);
   }
 
@@ -183,11 +198,16 @@ class ParallelLoop {
     else return iso_move_delta<kOffsets>(items_, state_, item, from, to);
   }
 
+  // Stamp of a change made now by a sweep stamped `sweep` (see the file comment).
+  uint32_t change_stamp(uint32_t sweep) const {
+    return options_.deterministic ? sweep : clock_.load(std::memory_order_relaxed);
+  }
+
   // The edge test of Algorithm 1 on (v, k) with a = label(v) ≠ b = label(k), both clusters held
   // by the caller: the same evaluation as the serial loop (F1: k joins a, F2: v joins b).
   // Returns the moved vertex or kNone; `blocked` when the better move was not allowed.
-  [[gnu::flatten]] uint32_t test_edge(uint32_t v, uint32_t k, int32_t a, int32_t b, uint32_t loop, bool k_may_join_a,
-                     bool v_may_join_b, bool& blocked) {
+  [[gnu::flatten]] uint32_t test_edge(uint32_t v, uint32_t k, int32_t a, int32_t b, uint32_t sweep, bool k_may_join_a,
+                                      bool v_may_join_b, bool& blocked) {
     auto label_of = [this](uint32_t u) { return load_label(labels_, u); };
     double gain1 = 0, gain2 = 0;
     if (state_.iso[b].count > 1) gain1 = move_gain(delta(k, b, a));
@@ -211,14 +231,16 @@ class ParallelLoop {
     }
     for (size_t i = 0; i < partitions_.size(); ++i)
       census_[i].move(partitions_[i], move_k ? k : v, move_k ? b : a, move_k ? a : b);
-    changed_in_[a].store(loop, std::memory_order_relaxed);
-    changed_in_[b].store(loop, std::memory_order_relaxed);
+    const uint32_t stamp = change_stamp(sweep);
+    changed_in_[a].store(stamp, std::memory_order_relaxed);
+    changed_in_[b].store(stamp, std::memory_order_relaxed);
     return move_k ? k : v;
   }
 
   void compute_owners(const Census& census);
-  void run_region(const Partition& p, uint32_t r, RegionWork& w, uint32_t loop);
-  uint64_t serial_pass(uint32_t loop);
+  uint64_t sweep_region(const Partition& p, uint32_t r, RegionWork& w, uint32_t sweep);
+  void visit_region(const Partition& p, uint32_t r, RegionWork& w);
+  uint64_t serial_pass(uint32_t sweep);
   void list_serially(uint32_t u);
   void rebucket(size_t target);
 
@@ -227,13 +249,14 @@ class ParallelLoop {
   int32_t* labels_;
   ClusterState& state_;
   const LoopOptions& options_;
+  ArrayStorage& storage_;
   const uint32_t K_;
-  std::vector<std::atomic<uint32_t>> changed_in_;  // last loop in which the cluster changed
+  std::vector<std::atomic<uint32_t>> changed_in_;  // stamp of the cluster's last change
   std::vector<std::atomic<int32_t>> owner_;        // region owning the cluster, or kShared
   std::vector<ClusterLock> locks_;                 // default mode only
-  std::vector<uint8_t> listed_;                    // on the candidate list; written by the vertex's region
-  std::vector<uint32_t> done_;                     // deterministic: phase stamp of a fully tested vertex
-  uint32_t stamp_ = 0;
+  LargeArray<uint8_t> listed_;                     // on the candidate list; written by the vertex's region
+  std::atomic<uint32_t> clock_{2};                 // default mode: stamps of sweeps (1 = initially active)
+  uint32_t phase_base_ = 0;                        // deterministic mode: stamps of this phase start here
   std::vector<RegionWork> works_;                  // candidate lists by region of partitions_[current_]
   size_t current_ = 0;
   std::vector<Partition> partitions_;              // one (default) or two (deterministic)
@@ -261,12 +284,14 @@ void ParallelLoop<kAniso, kOffsets>::compute_owners(const Census& census) {
   }
 }
 
+// One sweep of region r over its candidates, stamped `sweep`: a candidate is tested when its
+// cluster changed since the region's previous sweep began (w.last_sweep), else parked. Returns
+// the moves.
 template <bool kAniso, bool kOffsets>
-void ParallelLoop<kAniso, kOffsets>::run_region(const Partition& p, uint32_t r, RegionWork& w, uint32_t loop) {
+uint64_t ParallelLoop<kAniso, kOffsets>::sweep_region(const Partition& p, uint32_t r, RegionWork& w, uint32_t sweep) {
   const uint32_t first = p.begin[r], last = p.begin[r + 1];
   const int32_t me = int32_t(r);
-  w.outbox.clear();
-  w.moves = 0;
+  uint64_t moves = 0;
   auto list_vertex = [&](uint32_t u) {
     if (u < first || u >= last) w.outbox.push_back(u);
     else if (!listed_[u]) {
@@ -274,22 +299,17 @@ void ParallelLoop<kAniso, kOffsets>::run_region(const Partition& p, uint32_t r, 
       w.cand.push_back(u);
     }
   };
-  size_t kept = w.start;
-  for (size_t i = w.start; i < w.cand.size(); ++i) {
+  size_t kept = 0;
+  // Vertices appended during this sweep are tested in it too (as Algorithm 1's FIFO does).
+  for (size_t i = 0; i < w.cand.size(); ++i) {
     const uint32_t v = w.cand[i];
     const int32_t a0 = load_label(labels_, v);
     if (a0 < 0) {
       listed_[v] = 0;
       continue;
     }
-    if (options_.skip_unchanged && changed_in_[a0].load(std::memory_order_relaxed) + 1 < loop) {
-      w.cand[kept++] = v;  // parked, as in the serial loop
-      continue;
-    }
-    // Deterministic second phase: a vertex fully tested in the first one is not tested again
-    // in this loop (as in the serial loop, where a listed vertex is tested once per loop).
-    if (current_ == 1 && done_[v] == stamp_ - 1) {
-      w.cand[kept++] = v;
+    if (options_.skip_unchanged && changed_in_[a0].load(std::memory_order_relaxed) < w.last_sweep) {
+      w.cand[kept++] = v;  // parked: its cluster did not change since the previous sweep began
       continue;
     }
     bool boundary = false, postpone = false;
@@ -330,22 +350,44 @@ void ParallelLoop<kAniso, kOffsets>::run_region(const Partition& p, uint32_t r, 
       if (load_label(labels_, v) == a && load_label(labels_, k) == b)
         // An owned cluster only takes region-interior vertices, so it stays owned: no other
         // region ever sees it.
-        moved = test_edge(v, k, a, b, loop, !own_a || p.interior[k], !own_b || p.interior[v], blocked);
+        moved = test_edge(v, k, a, b, sweep, !own_a || p.interior[k], !own_b || p.interior[v], blocked);
       if (held[1]) held[1]->unlock();
       if (held[0]) held[0]->unlock();
       postpone |= blocked;
       if (moved != kNone) {
-        ++w.moves;
+        ++moves;
         list_vertex(moved);
         for (uint32_t n : mesh_.neighbours(moved)) list_vertex(n);
       }
     }
     if (postpone) w.postponed.push_back(v);
-    else if (current_ == 0 && !done_.empty()) done_[v] = stamp_;
     if (boundary) w.cand[kept++] = v;
     else listed_[v] = 0;
   }
   w.cand.resize(kept);
+  w.last_sweep = sweep;
+  return moves;
+}
+
+// A visit: sweeps until one moves nothing (the region is quiet) or kMaxSweeps.
+template <bool kAniso, bool kOffsets>
+void ParallelLoop<kAniso, kOffsets>::visit_region(const Partition& p, uint32_t r, RegionWork& w) {
+  w.outbox.clear();
+  w.moves = 0;
+  w.sweeps = 0;
+  if (w.cand.empty()) return;
+  // Deterministic mode sweeps once per visit: its regions leave the clusters they share to the
+  // other partition and the serial pass, so iterating them alone to quiet would converge the
+  // interiors and stop the rounds before the frontiers have.
+  const uint32_t max_sweeps = options_.deterministic ? 1 : kMaxSweeps;
+  for (uint32_t local = 1; local <= max_sweeps; ++local) {
+    const uint32_t sweep =
+        options_.deterministic ? phase_base_ + local : clock_.fetch_add(1, std::memory_order_relaxed) + 1;
+    const uint64_t moves = sweep_region(p, r, w, sweep);
+    w.moves += moves;
+    ++w.sweeps;
+    if (moves == 0) break;
+  }
 }
 
 // Puts u on the candidate list of its region (serial code only).
@@ -360,7 +402,7 @@ void ParallelLoop<kAniso, kOffsets>::list_serially(uint32_t u) {
 // Postponed vertices, region by region in list order, on one thread (no locks needed: nothing
 // else runs): the fixed order keeps the deterministic mode deterministic.
 template <bool kAniso, bool kOffsets>
-uint64_t ParallelLoop<kAniso, kOffsets>::serial_pass(uint32_t loop) {
+uint64_t ParallelLoop<kAniso, kOffsets>::serial_pass(uint32_t sweep) {
   uint64_t moves = 0;
   for (size_t r = 0; r < works_.size(); ++r) {
     std::vector<uint32_t> postponed = std::move(works_[r].postponed);
@@ -370,7 +412,7 @@ uint64_t ParallelLoop<kAniso, kOffsets>::serial_pass(uint32_t loop) {
         const int32_t a = labels_[v], b = labels_[k];
         if (a < 0 || b < 0 || a == b) continue;
         bool blocked = false;
-        const uint32_t moved = test_edge(v, k, a, b, loop, true, true, blocked);
+        const uint32_t moved = test_edge(v, k, a, b, sweep, true, true, blocked);
         if (moved == kNone) continue;
         ++moves;
         list_serially(moved);
@@ -391,9 +433,13 @@ void ParallelLoop<kAniso, kOffsets>::rebucket(size_t target) {
   for_each_region(to.size(), [&](uint32_t r) {
     const uint32_t first = to.begin[r], last = to.begin[r + 1];
     if (first == last) return;
-    for (uint32_t s = from.region[first]; s <= from.region[last - 1]; ++s)
+    uint32_t stamp = ~0u;  // the oldest previous sweep among the source lists: never skips too much
+    for (uint32_t s = from.region[first]; s <= from.region[last - 1]; ++s) {
+      stamp = std::min(stamp, works_[s].last_sweep);
       for (uint32_t v : works_[s].cand)
         if (v >= first && v < last) next[r].cand.push_back(v);
+    }
+    next[r].last_sweep = stamp == ~0u ? 1 : stamp;
   });
   works_ = std::move(next);
   current_ = target;
@@ -406,14 +452,13 @@ uint32_t ParallelLoop<kAniso, kOffsets>::run(ClusteringReport& report, std::span
   const auto t0 = std::chrono::steady_clock::now();
   // Region size: several regions per thread for load balance; in deterministic mode a function
   // of V only, so that the result does not depend on the thread count, and larger: every
-  // region border postpones edges to the serial pass (dragon, 437k vertices: regions of 8192
-  // left ~28% of the first loop's candidates to it, of 16384 about half as many).
+  // region border postpones edges to the serial pass.
   uint32_t length = options_.region_vertices;
   if (length == 0)
     length = options_.deterministic ? std::max<uint32_t>(16384, V / 1024) : std::max<uint32_t>(1024, V / (16 * threads));
   std::vector<Partition>& partitions = partitions_;
-  partitions.push_back(make_partition(mesh_, region_bounds(mesh_, length)));
-  if (options_.deterministic) partitions.push_back(make_partition(mesh_, shifted_bounds(partitions[0].begin)));
+  partitions.push_back(make_partition(mesh_, region_bounds(mesh_, length), storage_));
+  if (options_.deterministic) partitions.push_back(make_partition(mesh_, shifted_bounds(partitions[0].begin), storage_));
   for (const Partition& p : partitions) {
     Census c;
     c.boundary.assign(K_, 0);
@@ -434,7 +479,6 @@ uint32_t ParallelLoop<kAniso, kOffsets>::run(ClusteringReport& report, std::span
 
   for (uint32_t c = 0; c < K_; ++c)
     changed_in_[c].store(initially_active.empty() || initially_active[c] ? 1 : 0, std::memory_order_relaxed);
-  if (options_.deterministic) done_.assign(V, 0);
   // Initial candidates: every vertex on a cluster boundary, by region of the first partition.
   works_.assign(partitions[0].size(), RegionWork{});
   for_each_region(partitions[0].size(), [&](uint32_t r) {
@@ -450,60 +494,60 @@ uint32_t ParallelLoop<kAniso, kOffsets>::run(ClusteringReport& report, std::span
     }
   });
 
-  uint32_t loops = 0;
-  for (uint32_t loop = 2; loops < options_.max_loops; ++loop) {
-    ++loops;
+  uint32_t rounds = 0;
+  phase_base_ = 2;  // deterministic stamps: 0 stable, 1 initially active, then phase_base_ + sweep
+  uint32_t previous_round_start = 1;
+  for (; rounds < options_.max_loops;) {
+    ++rounds;
+    const uint32_t round_start = options_.deterministic ? phase_base_ : clock_.load(std::memory_order_relaxed);
     uint64_t moves = 0;
     for (size_t i = 0; i < partitions.size(); ++i) {
       if (current_ != i) rebucket(i);
       compute_owners(census_[i]);
-      ++stamp_;
-      for (RegionWork& w : works_) w.start = 0;
-      // Default mode: vertices listed by a neighbouring region are tested in the same loop, in
-      // short extra sweeps (as the serial loop tests vertices appended to its FIFO), so that
-      // region borders do not lag a loop behind. Deterministic mode: in the next phase.
-      const int sweeps = options_.deterministic ? 1 : 4;
-      for (int sweep = 0; sweep < sweeps; ++sweep) {
-        size_t pending = 0;
-        for (const RegionWork& w : works_) pending += w.cand.size() - w.start;
-        auto run = [&](uint32_t r) { run_region(partitions[i], r, works_[r], loop); };
-        // A short list (the late loops, the extra sweeps) is not worth waking the other threads.
-        if (pending < kSerialBelow) {
-          for (uint32_t r = 0; r < works_.size(); ++r) run(r);
-        } else {
-          for_each_region(uint32_t(works_.size()), run);
-        }
-        // Outboxes in region order (deterministic), then the postponed vertices.
-        bool listed_any = false;
-        for (RegionWork& w : works_) {
-          moves += w.moves;
-          w.start = w.cand.size();
-          for (uint32_t u : w.outbox) list_serially(u);
-          listed_any |= w.cand.size() > w.start;
-        }
-        if (!listed_any) break;
+      // Deterministic: a vertex is tested when its cluster changed in this round or the previous
+      // one, in both phases (its clusters may have been another partition's to change).
+      if (options_.deterministic)
+        for (RegionWork& w : works_) w.last_sweep = previous_round_start;
+      size_t pending = 0;
+      for (const RegionWork& w : works_) pending += w.cand.size();
+      auto visit = [&](uint32_t r) { visit_region(partitions[i], r, works_[r]); };
+      // A short list (the late rounds) is not worth waking the other threads.
+      if (pending < kSerialBelow) {
+        for (uint32_t r = 0; r < works_.size(); ++r) visit(r);
+      } else {
+        for_each_region(uint32_t(works_.size()), visit);
       }
+      // Outboxes in region order (deterministic): the next round tests them.
+      for (RegionWork& w : works_) {
+        moves += w.moves;
+        for (uint32_t u : w.outbox) list_serially(u);
+        w.outbox.clear();
+      }
+      if (options_.deterministic) phase_base_ += kMaxSweeps + 2;
     }
-    moves += serial_pass(loop);
+    const uint32_t serial_stamp = options_.deterministic ? phase_base_++ : clock_.fetch_add(1) + 1;
+    moves += serial_pass(serial_stamp);
     report.moves_per_loop.push_back(moves);
     report.energy_per_loop.push_back(state_energy(items_, state_));
-    if (kOffsets && moves > 0 && loops < options_.offset_update_loops) {
+    if (kOffsets && moves > 0 && rounds < options_.offset_update_loops) {
       for_each_block(K_, 1024, [&](uint32_t c) {
-        if (changed_in_[c].load(std::memory_order_relaxed) == loop) update_site_offset(state_, c);
+        if (changed_in_[c].load(std::memory_order_relaxed) >= round_start) update_site_offset(state_, c);
       });
     }
     report.seconds_per_loop.push_back(seconds_since(t0));
-    if (options_.on_loop) options_.on_loop(options_.constrained, loops, moves);
+    if (options_.on_loop) options_.on_loop(options_.constrained, rounds, moves);
+    previous_round_start = round_start;
     if (moves == 0 || double(moves) < options_.stop_fraction * double(V)) break;
   }
-  return loops;
+  return rounds;
 }
 
 template <bool kAniso, bool kOffsets>
 uint32_t run_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels, ClusterState& state,
                    const LoopOptions& options, ClusteringReport& report, std::span<const uint8_t> initially_active,
                    uint32_t threads) {
-  ParallelLoop<kAniso, kOffsets> loop(mesh, items, labels, state, options);
+  ParallelLoop<kAniso, kOffsets> loop(mesh, items, labels, state, options,
+                                      options.storage ? *options.storage : ram_storage());
   return loop.run(report, initially_active, threads);
 }
 

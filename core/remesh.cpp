@@ -185,7 +185,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   ItemData sampling_items;
   if (is_anisotropic(metric)) {
     sampling_items = compute_item_data(mesh, sampling_density);
-    attach_tensors(items, std::move(tensors));
+    attach_tensors(items, large_array_of(std::span<const float>(tensors)));
   }
   if (uses_quadrics(metric)) items.quadric = vertex_quadrics(mesh, items.origin);
   result.seconds.items = seconds_since(t);

@@ -45,7 +45,7 @@ struct Fixture {
   uint32_t K = 0;
   Fixture() {
     items = compute_item_data(mesh.view);
-    attach_tensors(items, random_tensors(mesh.view.vertex_count(), 7));
+    attach_tensors(items, large_array_of(std::span<const float>(random_tensors(mesh.view.vertex_count(), 7))));
     items.quadric = vertex_quadrics(mesh.view, items.origin);
     ComponentBudget b = plan_component_budget(mesh.view, items, 30, SmallComponents::Keep);
     K = b.total_clusters;
@@ -100,7 +100,7 @@ TEST(ClusterEnergy, IsotropicTensorsReduceAnisotropicToIsotropic) {
   Fixture f;
   std::vector<float> identity(6 * size_t(f.mesh.view.vertex_count()), 0.0f);
   for (size_t v = 0; v < identity.size() / 6; ++v) identity[6 * v] = identity[6 * v + 3] = identity[6 * v + 5] = 1.0f;
-  attach_tensors(f.items, identity);
+  attach_tensors(f.items, large_array_of(std::span<const float>(identity)));
   const ClusterState iso = make_cluster_state(f.items, f.labels, f.K, Metric::I);
   const ClusterState aniso = make_cluster_state(f.items, f.labels, f.K, Metric::A);
   EXPECT_NEAR(state_energy(f.items, iso), state_energy(f.items, aniso), 1e-9 * state_energy(f.items, iso));
@@ -119,7 +119,7 @@ TEST(ClusterEnergy, MetricsFallBackWithoutTheirData) {
   ItemData plain = compute_item_data(f.mesh.view);
   EXPECT_EQ(make_cluster_state(plain, f.labels, f.K, Metric::AQ).metric, Metric::I);
   EXPECT_EQ(make_cluster_state(plain, f.labels, f.K, Metric::A).metric, Metric::I);
-  plain.quadric = f.items.quadric;
+  plain.quadric = f.items.quadric.clone();
   EXPECT_EQ(make_cluster_state(plain, f.labels, f.K, Metric::AQ).metric, Metric::IQ);
 }
 

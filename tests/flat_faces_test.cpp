@@ -77,21 +77,18 @@ TEST(FlatFaces, NonFlatMeshIsUntouched) {
 }
 
 TEST(FlatFaces, DragonSeedsWithCollinearStripsHaveNoFlatFace) {
-  // At N = 20000 (metric I) seed 5 gives one flat strip triangle (dropped), seed 9 one (nudged);
-  // seeds 3 and 12 gave one under the former cap of 12 repair rounds.
+  // At N = 20000 (metric I) these seeds once gave flat strip triangles (dropped or nudged by the
+  // safety net; its own tests are above). Whatever the clustering gives, no face is degenerate.
   const auto path = test::shared_data_path("stanford_dragon_vrip.ply");
   if (!path) GTEST_SKIP() << "../shared/data absent";
   MeshStore store = MeshStore::build(read_mesh(*path).view());
-  uint64_t edits = 0;
   for (uint64_t seed : {3, 5, 9, 12}) {
     RemeshOptions o;
     o.vertices = 20000;
     o.seed = seed;
     const RemeshResult r = remesh(store.view(), o);
     EXPECT_EQ(compute_topology_stats(r.mesh.view()).degenerate_faces, 0u) << "seed " << seed;
-    edits += r.flat_faces_removed + r.flat_face_flips;
   }
-  EXPECT_GT(edits, 0u);  // the safety net did act on these seeds
 }
 
 }  // namespace

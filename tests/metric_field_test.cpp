@@ -19,6 +19,8 @@
 namespace streamcvd {
 namespace {
 
+std::vector<float> to_vector(const LargeArray<float>& a) { return {a.begin(), a.end()}; }
+
 using V3 = std::array<double, 3>;
 
 void append(MeshBuffers& a, const MeshBuffers& b, double dx, double dy, double dz) {
@@ -296,7 +298,7 @@ TEST(MetricField, QuadricOfAFlatPatchProjectsTheCentroid) {
   }
   const MeshStore store = store_of(m);
   const double origin[3] = {101, 1, 5.5};  // (101, 1, 5.5) lies on the plane
-  const std::vector<float> q = vertex_quadrics(store.view(), origin);
+  const LargeArray<float> q = vertex_quadrics(store.view(), origin);
   double sum[10] = {};
   for (uint32_t v = 0; v < store.view().vertex_count(); ++v)
     for (int k = 0; k < 10; ++k) sum[k] += q[10 * v + k];
@@ -317,7 +319,7 @@ TEST(MetricField, QuadricOfAFlatPatchProjectsTheCentroid) {
   std::uniform_real_distribution<float> bump(-1e-5f, 1e-5f);
   for (size_t i = 2; i < m.positions.size(); i += 3) m.positions[i] += bump(rng);
   const MeshStore bumpy = store_of(m);
-  const std::vector<float> qb = vertex_quadrics(bumpy.view(), origin);
+  const LargeArray<float> qb = vertex_quadrics(bumpy.view(), origin);
   double sb[10] = {};
   for (uint32_t v = 0; v < bumpy.view().vertex_count(); ++v)
     for (int k = 0; k < 10; ++k) sb[k] += qb[10 * v + k];
@@ -328,7 +330,7 @@ TEST(MetricField, QuadricOfAFlatPatchProjectsTheCentroid) {
 TEST(MetricField, QuadricOfACubeCornerAndCrease) {
   const MeshStore store = store_of(cube(2.0, 1000, -500, 7));
   const double origin[3] = {1001, -499, 8};  // the cube centre
-  const std::vector<float> q = vertex_quadrics(store.view(), origin);
+  const LargeArray<float> q = vertex_quadrics(store.view(), origin);
   // Corner 0 = (1000, -500, 7) → (-1, -1, -1) relative: three planes meet there.
   double Q[10];
   for (int k = 0; k < 10; ++k) Q[k] = q[k];
@@ -399,7 +401,7 @@ TEST(MetricField, DegenerateInputStaysFinite) {
     ASSERT_TRUE(K.allFinite() && K.isDiagonal() && K(0, 0) > 0) << v;
   }
   const double origin[3] = {0, 0, 0};
-  const std::vector<float> q = vertex_quadrics(view, origin);
+  const LargeArray<float> q = vertex_quadrics(view, origin);
   for (float x : q) ASSERT_TRUE(std::isfinite(x));
   for (uint32_t v : {100u, 101u}) {  // the isolated vertices
     for (int j = 0; j < 10; ++j) ASSERT_EQ(q[10 * v + j], 0.0f);
@@ -429,13 +431,13 @@ TEST(MetricField, IndependentOfThreadCount) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
     d1 = gradation_density(store.view(), k, 1.5);
     t1 = anisotropic_tensors(store.view(), k);
-    q1 = vertex_quadrics(store.view(), origin);
+    q1 = to_vector(vertex_quadrics(store.view(), origin));
   }
   {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 4);
     d4 = gradation_density(store.view(), k, 1.5);
     t4 = anisotropic_tensors(store.view(), k);
-    q4 = vertex_quadrics(store.view(), origin);
+    q4 = to_vector(vertex_quadrics(store.view(), origin));
   }
   EXPECT_EQ(d1, d4);
   EXPECT_EQ(t1, t4);

@@ -126,16 +126,19 @@ uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::
                               std::span<const uint8_t> initially_active = {});
 
 /// Cleaning step (§VI-B, Fig. 6): frees every piece of a cluster but its heaviest connected
-/// one, then gives each freed vertex to the cluster that reaches it first by BFS.
-/// Returns the number of vertices reset; counts disconnected clusters into `report`.
+/// one (the first in vertex order on a tie), then gives each freed vertex to a neighbouring
+/// region (absorb_free_vertices). Pieces by the chunk-wise union-find, in parallel over chunks;
+/// one component id per vertex from `storage`. Returns the number of vertices reset; counts
+/// disconnected clusters into `report`. Deterministic.
 uint64_t clean_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                        uint32_t cluster_count, ClusteringReport& report);
+                        uint32_t cluster_count, ClusteringReport& report, ArrayStorage& storage = ram_storage());
 
 /// Gives every free (−1) non-isolated vertex reachable from a labelled one the label of the
 /// region that reaches it first (multi-source BFS in vertex order). O(V + E).
 void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels);
 
-/// True when every cluster's vertices form one connected piece of the mesh graph.
+/// True when every cluster's vertices form one connected piece of the mesh graph. Chunk-wise
+/// union-find: memory of one chunk per thread plus the frontiers.
 bool clusters_connected(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count);
 
 }  // namespace streamcvd

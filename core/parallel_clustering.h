@@ -34,12 +34,6 @@ uint32_t run_parallel_clustering_loops(const MeshView& mesh, const ItemData& ite
                                        ClusterState& state, const LoopOptions& options, ClusteringReport& report,
                                        std::span<const uint8_t> initially_active = {});
 
-/// clean_clusters (core/clustering.h, same contract and choice of the kept piece) with the
-/// pieces found by a parallel lock-free union-find; the re-absorption stays serial. The result
-/// does not depend on the thread count. O((V + E) / T + V).
-uint64_t parallel_clean_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                                 uint32_t cluster_count, ClusteringReport& report, uint32_t threads);
-
 /// update_site_offsets(state) for every cluster, clusters spread over `threads` threads (0 =
 /// all). Bit-identical to the serial call. O(K / T).
 void parallel_update_site_offsets(ClusterState& state, uint32_t threads);

@@ -3,6 +3,7 @@
 // thread count, and a stress run over many small random configurations. The ThreadSanitizer
 // stage of tools/run_tests.sh runs this suite (ParallelClustering*).
 #include "core/parallel_clustering.h"
+#include "streaming/work_space.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -215,30 +216,71 @@ TEST(ParallelClustering, DeterministicModeIsByteIdenticalForAnyThreadCount) {
   std::filesystem::remove_all(dir);
 }
 
-TEST(ParallelClustering, ParallelCleaningMatchesTheSerialOne) {
-  // Random labels: clusters in many pieces. The parallel union-find keeps the same piece of
-  // each cluster as the serial BFS, and re-absorbs the rest identically, for any thread count.
+// The cleaning as the paper describes it, by BFS over each cluster's pieces: the reference the
+// chunk-wise union-find of clean_clusters must reproduce.
+std::vector<int32_t> reference_cleaning(const MeshView& view, const ItemData& items, std::vector<int32_t> labels,
+                                        uint32_t K, uint32_t& disconnected) {
+  const uint32_t V = view.vertex_count();
+  std::vector<uint32_t> piece(V, UINT32_MAX);
+  std::vector<double> weight;
+  std::vector<int32_t> cluster;
+  for (uint32_t s = 0; s < V; ++s) {
+    if (labels[s] < 0 || piece[s] != UINT32_MAX) continue;
+    const uint32_t id = uint32_t(weight.size());
+    std::vector<uint32_t> queue = {s};
+    piece[s] = id;
+    double w = 0;
+    for (size_t h = 0; h < queue.size(); ++h) {
+      w += items.weight[queue[h]];
+      for (uint32_t n : view.neighbours(queue[h]))
+        if (labels[n] == labels[s] && piece[n] == UINT32_MAX) piece[n] = id, queue.push_back(n);
+    }
+    weight.push_back(w);
+    cluster.push_back(labels[s]);
+  }
+  std::vector<uint32_t> best(K, UINT32_MAX), count(K, 0);
+  for (uint32_t p = 0; p < weight.size(); ++p) {
+    ++count[cluster[p]];
+    if (best[cluster[p]] == UINT32_MAX || weight[p] > weight[best[cluster[p]]]) best[cluster[p]] = p;
+  }
+  disconnected = 0;
+  for (uint32_t c = 0; c < K; ++c) disconnected += count[c] > 1;
+  for (uint32_t v = 0; v < V; ++v)
+    if (labels[v] >= 0 && best[labels[v]] != piece[v]) labels[v] = -1;
+  absorb_free_vertices(view, labels);
+  return labels;
+}
+
+TEST(ParallelClustering, CleaningMatchesTheBreadthFirstReference) {
+  // Random labels: clusters in many pieces. The chunk-wise union-find keeps the piece the BFS
+  // reference keeps (the heaviest, the first on a tie), for any thread count, chunk size and
+  // storage.
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, kTbbThreads);
   const MeshBuffers elephant = read_mesh(test::data_path("cgal_elephant.off"));
-  MeshStore store = MeshStore::build(elephant.view());
-  const MeshView view = store.view();
-  const ItemData items = compute_item_data(view);
-  std::mt19937 rng(7);
-  for (uint32_t K : {3u, 40u, 400u}) {
-    std::vector<int32_t> random(view.vertex_count());
-    for (int32_t& l : random) l = int32_t(rng() % K);
-    std::vector<int32_t> serial = random;
-    ClusteringReport serial_report;
-    const uint64_t serial_reset = clean_clusters(view, items, serial, K, serial_report);
-    ASSERT_GT(serial_report.disconnected_clusters, 0u);
-    EXPECT_TRUE(clusters_connected(view, serial, K));
-    for (uint32_t threads : {1u, 2u, 8u}) {
-      std::vector<int32_t> labels = random;
-      ClusteringReport report;
-      EXPECT_EQ(parallel_clean_clusters(view, items, labels, K, report, threads), serial_reset) << K << " T=" << threads;
-      EXPECT_EQ(report.disconnected_clusters, serial_report.disconnected_clusters);
-      EXPECT_EQ(report.cleaned_vertices, serial_report.cleaned_vertices);
-      EXPECT_TRUE(labels == serial) << K << " T=" << threads;
+  WorkSpace files("", 0);  // every array in a mapped work file
+  for (uint64_t faces_per_chunk : {uint64_t(1) << 20, uint64_t(300)}) {
+    MeshStore store = MeshStore::build(elephant.view(), {.faces_per_chunk = faces_per_chunk});
+    const MeshView view = store.view();
+    const ItemData items = compute_item_data(view);
+    std::mt19937 rng(7);
+    for (uint32_t K : {3u, 40u, 400u}) {
+      std::vector<int32_t> random(view.vertex_count());
+      for (int32_t& l : random) l = int32_t(rng() % K);
+      uint32_t disconnected = 0;
+      const std::vector<int32_t> expected = reference_cleaning(view, items, random, K, disconnected);
+      ASSERT_GT(disconnected, 0u);
+      EXPECT_TRUE(clusters_connected(view, expected, K));
+      EXPECT_FALSE(clusters_connected(view, random, K));
+      for (uint32_t threads : {1u, 2u, 8u}) {
+        tbb::global_control t(tbb::global_control::max_allowed_parallelism, threads);
+        for (ArrayStorage* storage : {&ram_storage(), static_cast<ArrayStorage*>(&files)}) {
+          std::vector<int32_t> labels = random;
+          ClusteringReport report;
+          clean_clusters(view, items, labels, K, report, *storage);
+          EXPECT_EQ(report.disconnected_clusters, disconnected);
+          EXPECT_TRUE(labels == expected) << K << " T=" << threads << " chunk " << faces_per_chunk;
+        }
+      }
     }
   }
 }

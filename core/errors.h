@@ -1,5 +1,6 @@
 // The few exception types streamcvd throws. The CLI maps them to exit codes:
-// InputError → 2 (bad input or usage), OutputError → 3 (cannot write), anything else → 1.
+// InputError → 2 (bad input or usage), OutputError → 3 (cannot write), CheckFailed → 4 (output
+// written, a guarantee failed), anything else → 1.
 #pragma once
 
 #include <cstdint>
@@ -17,6 +18,13 @@ class InputError : public std::runtime_error {
 
 /// An output could not be written (missing folder, permission, disk full).
 class OutputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A job whose output was written but fails one of its guarantees (non-manifold, degenerate,
+/// components or genus changed...): exit code 4, the output and report left for inspection.
+class CheckFailed : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };

@@ -152,7 +152,7 @@ int64_t euler_characteristic(const TriangleSoupView& soup) {
 
 }  // namespace
 
-RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
+RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArrayStorage& storage) {
   RemeshResult result;
   auto t = std::chrono::steady_clock::now();
   const Metric metric = options.clustering.metric;
@@ -181,13 +181,13 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   t = std::chrono::steady_clock::now();
   // The anisotropic energy is area-weighted (the tensors carry the curvature); the gradation
   // density then only shapes the initial sampling, as in the paper's A/AQ (§VII).
-  ItemData items = compute_item_data(mesh, is_anisotropic(metric) ? std::span<const float>() : density);
+  ItemData items = compute_item_data(mesh, is_anisotropic(metric) ? std::span<const float>() : density, storage);
   ItemData sampling_items;
   if (is_anisotropic(metric)) {
-    sampling_items = compute_item_data(mesh, sampling_density);
+    sampling_items = compute_item_data(mesh, sampling_density, storage);
     attach_tensors(items, large_array_of(std::span<const float>(tensors)));
   }
-  if (uses_quadrics(metric)) items.quadric = vertex_quadrics(mesh, items.origin);
+  if (uses_quadrics(metric)) items.quadric = vertex_quadrics(mesh, items.origin, storage);
   result.seconds.items = seconds_since(t);
 
   t = std::chrono::steady_clock::now();
@@ -308,6 +308,14 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
     result.output_euler_characteristic = euler_characteristic(dual.mesh.view());
     result.topology_changed = closed_input && (result.output_euler_characteristic != result.input_euler_characteristic ||
                                                result.defect_faces_removed > 0);
+  }
+  {  // Per component: one output piece each, genus kept, no new boundary loops.
+    std::vector<uint32_t> component_of_cluster(K, UINT32_MAX);
+    for (uint32_t v = 0; v < mesh.vertex_count(); ++v)
+      if (labels[v] >= 0) component_of_cluster[labels[v]] = result.budget.component_of_vertex[v];
+    const std::vector<ComponentShape> shapes = input_component_shapes(
+        mesh, result.budget.component_of_vertex, uint32_t(result.budget.clusters_per_component.size()), boundary_loops);
+    result.components = check_component_topology(shapes, dual.mesh.view(), dual.cluster_of_output_vertex, component_of_cluster);
   }
   result.duplicate_faces_removed = dual.duplicate_faces_removed;
   result.boundary_vertices_added = dual.boundary_vertices_added;

@@ -7,7 +7,9 @@
 #include <vector>
 
 #include "core/clustering.h"
+#include "core/component_topology.h"
 #include "core/dual_mesh.h"
+#include "core/large_array.h"
 #include "core/mesh_buffers.h"
 #include "core/mesh_optimize.h"
 #include "core/mesh_view.h"
@@ -72,6 +74,8 @@ struct RemeshResult {
   /// Closed input whose output lost or gained handles, or had holes opened by the last-resort
   /// cleanup: the budget is too coarse for a feature. Reported, never silent.
   bool topology_changed = false;
+  /// Each input component with clusters is one output component, same genus, no more loops.
+  ComponentCheck components;
 };
 
 /// Remeshes `mesh` to `options.vertices` clusters under options.clustering.metric (I, IQ, A,
@@ -81,6 +85,7 @@ struct RemeshResult {
 /// clustering around each defect (core/repair.h, up to repair_rounds). Deterministic for a seed with
 /// clustering.threads = 1 (default) or clustering.deterministic (any thread count); otherwise
 /// the parallel clustering may differ between runs (core/parallel_clustering.h).
-RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options);
+/// Arrays sized by the input come from `storage` (RAM, or the pipeline's work files).
+RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArrayStorage& storage = ram_storage());
 
 }  // namespace streamcvd

@@ -1,5 +1,6 @@
-// Linear 1→4 subdivision (paper §VI-F: remeshing by over-sampling, so that N can approach or
-// exceed the input vertex count).
+// How many levels of linear 1→4 subdivision a remesh asks for (paper §VI-F: remeshing by
+// over-sampling, so that N can approach or exceed the input vertex count). The subdivision itself
+// streams from a store into the store builder: streaming/subdivision_stream.h.
 #pragma once
 
 #include <cstdint>
@@ -8,11 +9,6 @@
 #include "core/mesh_view.h"
 
 namespace streamcvd {
-
-/// One level of linear subdivision: each edge gets its midpoint, each triangle becomes four
-/// (orientation kept). Degenerate faces (repeated index) are copied unchanged. Unreferenced
-/// vertices are kept. V' = V + E, F' = 4F. O(F log F) (edges by sorting).
-MeshBuffers subdivide_linear(const TriangleSoupView& mesh);
 
 /// Levels of subdivision for `input_vertices` → `clusters`: `requested` ≥ 0 is used as is;
 /// −1 (auto) subdivides until there are at least `min_vertices_per_cluster` input vertices per

@@ -153,4 +153,16 @@ uint64_t resident_anonymous_bytes() { return proc_field_kb("/proc/self/status", 
 
 uint64_t peak_rss_bytes() { return proc_field_kb("/proc/self/status", "VmHWM"); }
 
+IoCounters read_io_counters() {
+  IoCounters io;
+  std::ifstream in("/proc/self/io");
+  std::string key;
+  uint64_t value = 0;
+  while (in >> key >> value) {
+    if (key == "read_bytes:") io.read_bytes = value;
+    if (key == "write_bytes:") io.write_bytes = value;
+  }
+  return io;
+}
+
 }  // namespace streamcvd

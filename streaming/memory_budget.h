@@ -47,4 +47,11 @@ uint64_t resident_anonymous_bytes();
 /// Peak RSS of this process (VmHWM), bytes.
 uint64_t peak_rss_bytes();
 
+/// Bytes this process made the storage layer read and write (read_bytes / write_bytes of
+/// /proc/self/io: disk traffic, page cache hits excluded); zeros where unavailable.
+struct IoCounters {
+  uint64_t read_bytes = 0, write_bytes = 0;
+};
+IoCounters read_io_counters();
+
 }  // namespace streamcvd

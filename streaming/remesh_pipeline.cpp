@@ -1,16 +1,35 @@
 #include "streaming/remesh_pipeline.h"
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <chrono>
+#include <cstdlib>
+#include <filesystem>
 
 #include "core/errors.h"
 #include "core/subdivide.h"
 #include "streaming/mesh_io.h"
+#include "streaming/subdivision_stream.h"
+#include "streaming/work_space.h"
 
 namespace streamcvd {
 
 namespace {
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string default_work_directory() {
+  const char* tmp = std::getenv("TMPDIR");
+  return tmp && *tmp ? tmp : "/tmp";
+}
+
+// The share of the limit the per-vertex arrays may keep in RAM: half of what a RAM store leaves
+// (the page cache of a mapped store and of the work files needs the rest). ~0 = no limit.
+uint64_t work_ram_budget(uint64_t limit, uint64_t ram_store_bytes) {
+  if (limit == 0) return ~uint64_t(0);
+  return limit > ram_store_bytes ? (limit - ram_store_bytes) / 2 : 0;
 }
 }  // namespace
 
@@ -34,26 +53,34 @@ InputSummary summarize_input(const MeshView& mesh, uint64_t components) {
 
 PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& options) {
   PipelineResult result;
+  result.memory_limit = options.memory_limit;
+  const std::string work = options.work_directory.empty() ? default_work_directory() : options.work_directory;
   MeshView view = store.view();
   result.subdivision_levels = subdivision_levels(view.vertex_count(), options.remesh.vertices, options.subdivide);
+  // Subdivision streams each level from the current store into the builder (RAM or work files).
   MeshStore subdivided;
-  if (result.subdivision_levels > 0) {
-    auto t = std::chrono::steady_clock::now();
-    MeshBuffers soup;
-    soup.positions.assign(view.positions.begin(), view.positions.end());
-    soup.triangles.assign(view.triangles.begin(), view.triangles.end());
-    for (int level = 0; level < result.subdivision_levels; ++level) soup = subdivide_linear(soup.view());
-    result.subdivide_seconds = seconds_since(t);
-    t = std::chrono::steady_clock::now();
-    subdivided = MeshStore::build(std::move(soup));
-    result.store_seconds += seconds_since(t);
+  for (int level = 0; level < result.subdivision_levels; ++level) {
+    const auto t = std::chrono::steady_clock::now();
+    StoreBuildOptions build;
+    build.memory_limit = options.memory_limit;
+    build.work_directory = work;
+    WorkSpace scratch(work, work_ram_budget(options.memory_limit, 0));
+    MeshStore next = MeshStore::build_from_stream(
+        [&](MeshSink& sink) { stream_subdivision(view, sink, scratch); }, build, nullptr, options.progress);
+    subdivided = std::move(next);
     view = subdivided.view();
+    result.subdivide_seconds += seconds_since(t);
   }
   result.remeshed_vertices = view.vertex_count();
   result.remeshed_faces = view.face_count();
   RemeshOptions remesh_options = options.remesh;
   if (!remesh_options.density.empty() && result.subdivision_levels > 0) remesh_options.density.clear();
-  result.remesh = remesh(view, remesh_options);
+  const uint64_t ram_store = result.subdivision_levels > 0 ? subdivided.ram_bytes() : store.ram_bytes();
+  result.work_ram_bytes = work_ram_budget(options.memory_limit, ram_store);
+  WorkSpace space(work, result.work_ram_bytes);
+  remesh_options.clustering.storage = &space;
+  result.remesh = remesh(view, remesh_options, space);
+  result.work_file_peak_bytes = space.peak_file_bytes();
   if (result.remesh.mesh.face_count() == 0)
     // An empty file is no answer: every component was dropped, or is thinner than a cluster
     // everywhere (a needle), or has no area.
@@ -70,25 +97,37 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
   auto t = std::chrono::steady_clock::now();
   MeshStore store;
   double load_seconds = 0, store_seconds = 0;
+  PipelineOptions o = options;
+  std::string kept;
   if (is_store_directory(input)) {
     store = MeshStore::open(input);
     store.validate_all();
+    if (o.work_directory.empty()) o.work_directory = input;  // work files beside the store
     load_seconds = seconds_since(t);
   } else {
-    MeshBuffers soup = read_mesh(input);
-    load_seconds = seconds_since(t);
-    t = std::chrono::steady_clock::now();
-    store = MeshStore::build(std::move(soup));
+    StoreBuildOptions build;
+    build.memory_limit = o.memory_limit;
+    build.work_directory = o.work_directory.empty() ? default_work_directory() : o.work_directory;
+    if (o.keep_work) {
+      // A named store in the work folder, kept for a rerun.
+      std::string name = std::filesystem::path(input == "-" ? "stdin" : input).filename().string();
+      kept = (std::filesystem::path(build.work_directory) / (name + ".store")).string();
+      store = MeshStore::ingest(input, kept, build, {}, nullptr, o.progress);
+    } else {
+      store = MeshStore::build_from_file(input, build, {}, nullptr, o.progress);
+    }
     store_seconds = seconds_since(t);
   }
   PipelineResult result;
   try {
-    result = remesh_store(store, options);
+    result = remesh_store(store, o);
   } catch (const InputError& e) {
     throw InputError(error_at(input, e.what()));  // name the file, as every CLI error does
   }
   result.load_seconds = load_seconds;
   result.store_seconds += store_seconds;
+  result.store_in_ram = store.ram_bytes() > 0 || store.view().vertex_count() == 0;
+  result.kept_store = kept;
   return result;
 }
 

@@ -1,7 +1,11 @@
-// The remeshing job from a file or store to an output mesh: load (or map) the input, subdivide
-// when the budget asks for it (§VI-F), build the store in RAM, remesh, check the output.
+// The remeshing job from a file or store to an output mesh, in bounded memory (DESIGN.md §3, §7):
+// map the store (or stream a file into a temporary store: in RAM when it fits the memory limit,
+// else in anonymous work files), subdivide when the budget asks for it (§VI-F, streamed into the
+// store builder), remesh with the per-vertex arrays in a WorkSpace (RAM within the limit, else
+// mapped work files), check the output.
 #pragma once
 
+#include <functional>
 #include <string>
 
 #include "core/mesh_stats.h"
@@ -13,6 +17,17 @@ namespace streamcvd {
 struct PipelineOptions {
   RemeshOptions remesh;
   int subdivide = -1;  ///< −1 auto (fewer than ~10 input vertices per cluster), 0 none, K levels
+  /// Bytes the job may use (0 = unlimited). Decides what stays in RAM (the store of a file
+  /// input, the per-vertex arrays) and what goes to work files; never the result.
+  uint64_t memory_limit = 0;
+  /// Folder of the work files (anonymous: removed whatever ends the job); "" = the folder of a
+  /// store input, else TMPDIR (else /tmp).
+  std::string work_directory;
+  /// A file input's store is written as a named store in the work folder and kept, so that a
+  /// rerun can start from it (`remesh STORE`).
+  bool keep_work = false;
+  /// Progress of the store build of a file input, and of the stages.
+  std::function<void(const BuildProgress&)> progress;
 };
 
 struct InputSummary {
@@ -31,16 +46,22 @@ struct PipelineResult {
   double load_seconds = 0, subdivide_seconds = 0, store_seconds = 0;
   TopologyStats output_topology;
   QualityStats output_quality;
+  uint64_t memory_limit = 0;       ///< the limit planned with
+  uint64_t work_ram_bytes = 0;     ///< budget of the per-vertex arrays in RAM
+  uint64_t work_file_peak_bytes = 0;  ///< largest total of mapped work files at once
+  bool store_in_ram = true;        ///< the (temporary or subdivided) store was built in RAM
+  std::string kept_store;          ///< keep_work: the store left in the work folder
 };
 
 /// Summary figures of a store view in O(V) (Euler characteristic from CSR degrees).
 InputSummary summarize_input(const MeshView& mesh, uint64_t components);
 
-/// Remeshes an in-RAM or mapped store (subdividing first when asked or needed). Throws
-/// InputError when the result has no triangle (all components dropped, or thinner than a cluster).
+/// Remeshes a store (subdividing first when asked or needed). Throws InputError when the result
+/// has no triangle (all components dropped, or thinner than a cluster).
 PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& options);
 
-/// Loads `input` (mesh file or store directory) and remeshes it. Throws InputError naming `input`.
+/// Loads `input` (mesh file, "-", or store directory) and remeshes it. Throws InputError naming
+/// `input`, OutputError when a work file cannot be written (disk full).
 PipelineResult remesh_path(const std::string& input, const PipelineOptions& options);
 
 }  // namespace streamcvd

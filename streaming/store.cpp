@@ -192,7 +192,7 @@ StoreHeader header_of(const StoreBuildResult& r, uint32_t attribute_count) {
 }
 
 // Reads `input` into `builder` (the reader's blocks go straight to the builder).
-void stream_file(const std::string& input, StoreBuilder& builder, const ReadOptions& read,
+void stream_file(const std::string& input, MeshSink& builder, const ReadOptions& read,
                  const std::function<void(const BuildProgress&)>& progress) {
   ReadOptions options = read;
   if (progress && !options.progress)
@@ -330,6 +330,11 @@ MeshStore MeshStore::build(MeshBuffers&& soup, const StoreBuildOptions& options)
 MeshStore MeshStore::build_from_file(const std::string& input, const StoreBuildOptions& options,
                                      const ReadOptions& read, StoreBuildReport* report,
                                      std::function<void(const BuildProgress&)> progress) {
+  return build_from_stream([&](MeshSink& sink) { stream_file(input, sink, read, progress); }, options, report, progress);
+}
+
+MeshStore MeshStore::build_from_stream(const std::function<void(MeshSink&)>& produce, const StoreBuildOptions& options,
+                                       StoreBuildReport* report, std::function<void(const BuildProgress&)> progress) {
   StoreBuildOptions o = options;
   if (o.work_directory.empty()) {
     const char* tmp = std::getenv("TMPDIR");
@@ -337,7 +342,7 @@ MeshStore MeshStore::build_from_file(const std::string& input, const StoreBuildO
   }
   AutoOutputs out(o.memory_limit, o.work_directory);
   StoreBuilder builder(out, o, progress);
-  stream_file(input, builder, read, progress);
+  produce(builder);
   if (report) *report = builder.result().report;
   if (ScratchOutputs* scratch = out.scratch()) return StoreAssembly::from_scratch(*scratch, builder.result());
   return StoreAssembly::from_memory(out.ram(), builder.result());
@@ -569,6 +574,12 @@ const std::vector<VertexAttribute>& MeshStore::attributes() const { return impl_
 uint64_t MeshStore::size_bytes() const {
   uint64_t total = sizeof(StoreHeader);
   for (const ArrayFile& f : array_files(impl_->header)) total += f.count * f.element;
+  return total;
+}
+
+uint64_t MeshStore::ram_bytes() const {
+  uint64_t total = 0;
+  for (const auto& a : impl_->ram) total += a.size();
   return total;
 }
 

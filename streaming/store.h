@@ -71,6 +71,11 @@ class MeshStore {
   static MeshStore build_from_file(const std::string& input, const StoreBuildOptions& options = {},
                                    const ReadOptions& read = {}, StoreBuildReport* report = nullptr,
                                    std::function<void(const BuildProgress&)> progress = {});
+  /// Same as build_from_file for any producer of blocks: `produce(sink)` streams a mesh into
+  /// the sink it is given (a reader, a subdivision of another store...).
+  static MeshStore build_from_stream(const std::function<void(MeshSink&)>& produce, const StoreBuildOptions& options = {},
+                                     StoreBuildReport* report = nullptr,
+                                     std::function<void(const BuildProgress&)> progress = {});
   /// Streams the mesh file `input` ("-" = standard input) into the store directory `directory`
   /// in bounded memory (options.memory_limit), then opens it. Crash-safe: the old header is
   /// removed first, arrays are synced before any rename and the header is written last, so an
@@ -111,6 +116,8 @@ class MeshStore {
   const std::vector<VertexAttribute>& attributes() const;
   /// Bytes of all arrays (the store's size on disk).
   uint64_t size_bytes() const;
+  /// Bytes of the arrays held in RAM (0 for a store mapped from files).
+  uint64_t ram_bytes() const;
 
  private:
   struct Impl;

@@ -25,6 +25,7 @@
 #include "core/surface_distance.h"
 #include "streaming/mesh_io.h"
 #include "streaming/store.h"
+#include "streaming/subdivision_stream.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

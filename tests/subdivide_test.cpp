@@ -17,6 +17,7 @@
 #include "core/shapes.h"
 #include "streaming/remesh_pipeline.h"
 #include "streaming/store.h"
+#include "streaming/subdivision_stream.h"
 
 namespace streamcvd {
 namespace {

@@ -11,7 +11,9 @@
 #include "streaming/output_file.h"
 #include "core/parallel_clustering.h"
 #include "streaming/remesh_pipeline.h"
+#include "streaming/memory_budget.h"
 #include "tools/commands.h"
+#include "tools/job_options.h"
 
 namespace streamcvd::cli {
 
@@ -28,6 +30,8 @@ struct RemeshArgs {
   uint32_t threads = 0;
   uint64_t seed = RemeshOptions{}.seed;
   bool no_strips = false, no_project = false, no_optimize = false, ascii = false, quiet = false, deterministic = false;
+  bool keep_work = false;
+  JobOptions job;
 };
 
 // The output guarantees of a run (issue: closed manifold in → closed, oriented manifold out).
@@ -65,9 +69,39 @@ nlohmann::json guarantee_checks(const PipelineResult& r, uint32_t requested, boo
   j["manifold_ok"] = manifold_ok;
   j["closed_ok"] = closed_ok;
   j["topology_changed"] = rm.topology_changed;
-  all_ok = manifold_ok && closed_ok && genus_ok && !rm.topology_changed && rm.defect_vertices == 0;
+  const bool components_ok = rm.components.ok();
+  j["components_ok"] = components_ok;
+  j["input_components_with_clusters"] = rm.components.input_components;
+  j["output_components"] = rm.components.output_components;
+  if (!components_ok) j["component_problems"] = rm.components.problems;
+  all_ok = manifold_ok && closed_ok && genus_ok && !rm.topology_changed && rm.defect_vertices == 0 && components_ok;
   j["all_ok"] = all_ok;
   return j;
+}
+
+// The failed guarantees of `checks`, with their figures, on one line.
+std::string failed_checks(const nlohmann::json& checks) {
+  std::string out;
+  auto add = [&](const std::string& what) { out += (out.empty() ? "" : "; ") + what; };
+  if (!checks.value("manifold_ok", true))
+    add("not a clean manifold (" + std::to_string(checks.value("output_nonmanifold_edges", 0)) + " non-manifold edges, " +
+        std::to_string(checks.value("output_nonmanifold_vertices", 0)) + " non-manifold vertices, " +
+        std::to_string(checks.value("output_duplicate_faces", 0)) + " duplicate and " +
+        std::to_string(checks.value("output_degenerate_faces", 0)) + " degenerate faces, " +
+        std::to_string(checks.value("output_isolated_vertices", 0)) + " isolated vertices)");
+  if (!checks.value("closed_ok", true)) add("the input is closed, the output is not");
+  if (!checks.value("genus_preserved", true) || !checks.value("euler_characteristic_preserved", true))
+    add("Euler characteristic " + std::to_string(checks.value("output_euler_characteristic", 0)) + ", the input has " +
+        std::to_string(checks.value("input_euler_characteristic", 0)));
+  if (checks.value("topology_changed", false)) add("topology changed (faces deleted around defects)");
+  if (checks.value("defect_vertices_after_repair", 0) > 0)
+    add(std::to_string(checks.value("defect_vertices_after_repair", 0)) + " vertices still on defects");
+  if (!checks.value("components_ok", true)) {
+    std::string list;
+    for (const auto& p : checks["component_problems"]) list += (list.empty() ? "" : ", ") + p.get<std::string>();
+    add("components: " + list);
+  }
+  return out;
 }
 
 }  // namespace
@@ -127,6 +161,9 @@ void add_remesh_command(CLI::App& app) {
   cmd->add_flag("--deterministic", args->deterministic,
                 "Parallel clustering whose output is byte-identical for every thread count and run (lock-free "
                 "phases over fixed regions; slightly slower)");
+  add_job_options(cmd, args->job, /*with_threads=*/false);
+  cmd->add_flag("--keep-work", args->keep_work,
+                "Keep the store built from a file input in the work folder (named <input>.store), for reruns");
   cmd->callback([args] {
     PipelineOptions options;
     options.remesh.vertices = args->vertices;
@@ -173,8 +210,15 @@ void add_remesh_command(CLI::App& app) {
         if (moves == 0) std::fprintf(stderr, "\n");
       };
     }
+    options.memory_limit = memory_limit(args->job);
+    options.work_directory = args->job.work_dir;
+    options.keep_work = args->keep_work;
+    auto progress = std::make_shared<ProgressLine>("remesh", args->job);
+    if (!args->quiet) options.progress = [progress](const BuildProgress& p) { progress->update(p); };
     double t0 = now_seconds();
+    const IoCounters io0 = read_io_counters();
     PipelineResult r = remesh_path(args->input, options);
+    progress->finish();
     double t_write = now_seconds();
     WriteOptions write_options;
     write_options.ascii = args->ascii;
@@ -256,6 +300,16 @@ void add_remesh_command(CLI::App& app) {
       j["quality"] = quality_json(r.output_quality);
       j["checks"] = checks;
       j["peak_rss_bytes"] = peak_rss_bytes();
+      const MemoryPeak peak = measure_peak_memory();
+      const IoCounters io1 = read_io_counters();
+      j["memory"] = {{"limit_bytes", r.memory_limit},
+                     {"peak_bytes", peak.bytes},
+                     {"peak_source", peak.source == PeakSource::Cgroup ? "cgroup" : "rss"},
+                     {"work_ram_budget_bytes", r.work_ram_bytes == ~uint64_t(0) ? 0 : r.work_ram_bytes},
+                     {"work_file_peak_bytes", r.work_file_peak_bytes},
+                     {"store_in_ram", r.store_in_ram}};
+      j["io"] = {{"read_bytes", io1.read_bytes - io0.read_bytes}, {"write_bytes", io1.write_bytes - io0.write_bytes}};
+      if (!r.kept_store.empty()) j["kept_store"] = r.kept_store;
       write_file_atomic(args->report, j.dump(2) + "\n");
     }
     if (!args->quiet) {
@@ -270,8 +324,9 @@ void add_remesh_command(CLI::App& app) {
       std::fprintf(stderr, "  loops  %u + %u, repair rounds %u; time %.2f s (load %.2f, clustering %.2f); peak %.0f MB\n",
                    cr.unconstrained_loops, cr.constrained_loops, rm.repair_rounds_used, total, r.load_seconds,
                    rm.seconds.clustering, double(peak_rss_bytes()) / 1e6);
-      std::fprintf(stderr, "  checks %s\n", all_ok ? "all passed" : checks.dump().c_str());
+      std::fprintf(stderr, "  checks %s\n", all_ok ? "all passed" : "FAILED (below)");
     }
+    if (!all_ok) throw CheckFailed(args->output + ": " + failed_checks(checks));
   });
 }
 

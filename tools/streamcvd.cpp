@@ -1,6 +1,6 @@
 // streamcvd command-line tool: parses arguments, runs one subcommand, maps errors to exit codes.
 // Exit codes: 0 success, 1 internal error, 2 bad input or usage, 3 output could not be written,
-// 130/143 interrupted by SIGINT/SIGTERM.
+// 4 output written but a check failed, 130/143 interrupted by SIGINT/SIGTERM.
 #include <sys/resource.h>
 
 #include <chrono>
@@ -63,6 +63,9 @@ int main(int argc, char** argv) {
   } catch (const OutputError& e) {
     std::fprintf(stderr, "streamcvd: error: %s\n", e.what());
     return 3;
+  } catch (const CheckFailed& e) {
+    std::fprintf(stderr, "streamcvd: check failed: %s\n", e.what());
+    return 4;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "streamcvd: error: out of memory\n");
     return 1;

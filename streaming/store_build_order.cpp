@@ -345,7 +345,8 @@ void StoreBuilder::State::order_vertices() {
       for (size_t i = r.begin(); i != r.end(); ++i) {
         const std::byte* rec = records.data() + size_t(items[i].slot) * record_bytes;
         std::memcpy(&out_xyz[3 * i], rec + offsetof(VertexRecord, xyz), 12);
-        std::memcpy(&out_attributes[attribute_count * i], rec + sizeof(VertexRecord), 4 * attribute_count);
+        if (attribute_count != 0)  // out_attributes is empty then: no element to address
+          std::memcpy(&out_attributes[attribute_count * i], rec + sizeof(VertexRecord), 4 * attribute_count);
       }
     });
     add_block_boxes(block_boxes, vertex_count, out_xyz);

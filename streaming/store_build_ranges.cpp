@@ -179,7 +179,6 @@ RangePass::RangePass(StoreBuilder::State& s)
 
 void RangePass::load(uint32_t r, RangeInput& in) {
   s_.owned_faces->take(r, in.faces);
-  const uint32_t vb = begin_of(r), n = end_of(r) - vb;
 }
 
 // Owned faces counting-sorted by owner (stable): final order and ids; owned_start_ = offsets.
@@ -331,7 +330,7 @@ void RangePass::close_chunk(uint64_t end_vertex, uint64_t end_face) {
 }
 
 // Bounding boxes and halo faces of the chunks this range covers (cut at cuts_).
-void RangePass::chunk_stats(uint32_t, const RangeInput& in) {
+void RangePass::chunk_stats(uint32_t, const RangeInput&) {
   const uint32_t ve = vb_ + n_;
   size_t next_cut = 0;
   for (uint32_t s0 = vb_; s0 < ve;) {

@@ -136,13 +136,15 @@ std::vector<Face> triples_around(const MeshView& mesh, std::span<const int32_t> 
 }
 
 bool fan_defective(uint32_t x, std::span<const Face> faces, FanScratch& scratch) {
-  auto& entries = scratch.entries;  // {neighbour, outgoing?, face}
+  // One 64-bit key per (face, edge at x): the other end of the edge, the face, and whether the
+  // face runs x → other (1) or other → x (0); sorted, a run of keys is one edge at x.
+  auto& entries = scratch.entries;
   entries.clear();
   for (uint32_t i = 0; i < faces.size(); ++i) {
     const Face& t = faces[i];
     const int k = t[0] == x ? 0 : t[1] == x ? 1 : 2;
-    entries.push_back({t[(k + 1) % 3], 1, i});  // x → next
-    entries.push_back({t[(k + 2) % 3], 0, i});  // previous → x
+    entries.push_back(uint64_t(t[(k + 1) % 3]) << 32 | uint64_t(i) << 1 | 1u);  // x → next
+    entries.push_back(uint64_t(t[(k + 2) % 3]) << 32 | uint64_t(i) << 1);       // previous → x
   }
   std::sort(entries.begin(), entries.end());
   auto& parent = scratch.parent;
@@ -156,11 +158,11 @@ bool fan_defective(uint32_t x, std::span<const Face> faces, FanScratch& scratch)
   for (size_t i = 0; i < entries.size();) {
     size_t j = i;
     uint32_t out = 0;
-    while (j < entries.size() && entries[j][0] == entries[i][0]) out += entries[j++][1];
+    while (j < entries.size() && entries[j] >> 32 == entries[i] >> 32) out += uint32_t(entries[j++] & 1);
     const size_t n = j - i, in = n - out;
     if (n > 2 || out == 2 || in == 2) return true;
     if (n == 2) {
-      const uint32_t a = find(entries[i][2]), b = find(entries[i + 1][2]);
+      const uint32_t a = find(uint32_t(entries[i]) >> 1), b = find(uint32_t(entries[i + 1]) >> 1);
       if (a != b) {
         parent[a] = b;
         --fans;
@@ -169,35 +171,31 @@ bool fan_defective(uint32_t x, std::span<const Face> faces, FanScratch& scratch)
     i = j;
   }
   if (fans != 1) return true;
-  auto& sets = scratch.sets;
-  sets.assign(faces.begin(), faces.end());
-  for (Face& t : sets) std::sort(t.begin(), t.end());
-  std::sort(sets.begin(), sets.end());
-  return std::adjacent_find(sets.begin(), sets.end()) != sets.end();
+  // Two faces on one vertex set {x, y, z} hold both edges x-y and x-z, which then have no other
+  // face: past the tests above they are the whole fan. So only a fan of two faces can hold them.
+  if (faces.size() != 2) return false;
+  Face a = faces[0], b = faces[1];
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  return a == b;
 }
 
-std::vector<FanVerdict> check_fan_list(std::span<const Face> faces, std::vector<std::pair<uint32_t, uint32_t>>&& around) {
-  tbb::parallel_sort(around.begin(), around.end());
-  // Blocks of whole vertex groups: each starts at the first entry of a vertex.
-  constexpr size_t kBlocks = 64;
-  std::vector<size_t> start;
-  for (size_t k = 0; k < kBlocks; ++k) {
-    size_t s = around.size() * k / kBlocks;
-    while (s > 0 && s < around.size() && around[s].first == around[s - 1].first) ++s;
-    if (start.empty() || s > start.back()) start.push_back(s);
-  }
-  start.push_back(around.size());
-  std::vector<std::vector<FanVerdict>> verdicts(start.size() - 1);
+std::vector<FanVerdict> check_fan_csr(std::span<const Face> faces, std::span<const uint32_t> ids,
+                                      std::span<const uint32_t> offsets, std::span<const uint32_t> face_of) {
+  const uint32_t n = offsets.empty() ? 0 : uint32_t(offsets.size() - 1);
+  constexpr uint32_t kBlock = 4096;
+  const uint32_t blocks = (n + kBlock - 1) / kBlock;
+  std::vector<std::vector<FanVerdict>> verdicts(blocks);
   tbb::enumerable_thread_specific<std::pair<FanScratch, std::vector<Face>>> scratch;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, start.size() - 1, 1), [&](const tbb::blocked_range<size_t>& r) {
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, blocks, 1), [&](const tbb::blocked_range<uint32_t>& r) {
     auto& [fan_scratch, fan] = scratch.local();
-    for (size_t b = r.begin(); b != r.end(); ++b)
-      for (size_t i = start[b]; i < start[b + 1];) {
-        size_t j = i;
+    for (uint32_t b = r.begin(); b != r.end(); ++b)
+      for (uint32_t x = b * kBlock; x < std::min(n, (b + 1) * kBlock); ++x) {
+        if (offsets[x] == offsets[x + 1]) continue;
         fan.clear();
-        while (j < start[b + 1] && around[j].first == around[i].first) fan.push_back(faces[around[j++].second]);
-        verdicts[b].push_back({around[i].first, fan_defective(around[i].first, fan, fan_scratch)});
-        i = j;
+        for (uint32_t i = offsets[x]; i < offsets[x + 1]; ++i) fan.push_back(faces[face_of[i]]);
+        const uint32_t id = ids.empty() ? x : ids[x];
+        verdicts[b].push_back({id, fan_defective(id, fan, fan_scratch)});
       }
   });
   std::vector<FanVerdict> out;

@@ -6,6 +6,7 @@
 // by V or F. Internal to core/.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
@@ -76,9 +77,8 @@ std::vector<Face> triples_around(const MeshView& mesh, std::span<const int32_t> 
 
 /// Scratch of fan_defective (one per thread).
 struct FanScratch {
-  std::vector<std::array<uint32_t, 3>> entries;
+  std::vector<uint64_t> entries;
   std::vector<uint32_t> parent;
-  std::vector<Face> sets;
 };
 
 /// True when the faces around vertex x (each holds x once) are not a manifold neighbourhood:
@@ -92,22 +92,45 @@ struct FanVerdict {
   bool defective = false;
 };
 
-/// fan_defective of each vertex x of `around` (pairs {x, index of a face of `faces` holding x},
-/// in any order; sorted here), in parallel over blocks of vertices: one verdict per vertex,
-/// ascending.
-std::vector<FanVerdict> check_fan_list(std::span<const Face> faces, std::vector<std::pair<uint32_t, uint32_t>>&& around);
+/// fan_defective of every vertex with faces in a CSR vertex → faces: vertex k is ids[k] (k
+/// itself when `ids` is empty) and its faces are faces[face_of[offsets[k] .. offsets[k + 1])].
+/// In parallel over blocks of vertices: one verdict per such vertex, in the order of k.
+std::vector<FanVerdict> check_fan_csr(std::span<const Face> faces, std::span<const uint32_t> ids,
+                                      std::span<const uint32_t> offsets, std::span<const uint32_t> face_of);
 
 /// The manifold verdict of every vertex of `faces` (no face may repeat an index) that
 /// selected(x) accepts: one per such vertex that has faces, ascending. A vertex's verdict
-/// depends only on the faces that hold it. Deterministic; O(D log D).
+/// depends only on the faces that hold it. Deterministic. A counting sort of the corners by
+/// vertex: O(D + largest id), or O(D log D) when the ids are sparse (a few faces of a large
+/// dual), so a re-check of a small region costs what the region holds.
 template <class Selected>
 std::vector<FanVerdict> check_fans(std::span<const Face> faces, const Selected& selected) {
-  std::vector<std::pair<uint32_t, uint32_t>> around;  // {vertex, face}
-  around.reserve(3 * faces.size());
+  uint32_t top = 0;
+  for (const Face& f : faces) top = std::max({top, f[0] + 1, f[1] + 1, f[2] + 1});
+  std::vector<uint32_t> ids;  // sparse: the selected ids, and each corner's position among them
+  const bool sparse = top > 24 * faces.size() + 4096;
+  if (sparse) {
+    for (const Face& f : faces)
+      for (uint32_t x : f)
+        if (selected(x)) ids.push_back(x);
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  }
+  auto slot = [&](uint32_t x) {
+    return sparse ? uint32_t(std::lower_bound(ids.begin(), ids.end(), x) - ids.begin()) : x;
+  };
+  const uint32_t n = sparse ? uint32_t(ids.size()) : top;
+  std::vector<uint32_t> offsets(size_t(n) + 1, 0);
+  for (const Face& f : faces)
+    for (uint32_t x : f)
+      if (selected(x)) ++offsets[slot(x) + 1];
+  for (uint32_t k = 0; k < n; ++k) offsets[k + 1] += offsets[k];
+  std::vector<uint32_t> face_of(offsets[n]);
+  std::vector<uint32_t> at(offsets.begin(), offsets.end() - 1);
   for (uint32_t i = 0; i < faces.size(); ++i)
     for (uint32_t x : faces[i])
-      if (selected(x)) around.push_back({x, i});
-  return check_fan_list(faces, std::move(around));
+      if (selected(x)) face_of[at[slot(x)]++] = i;
+  return check_fan_csr(faces, ids, offsets, face_of);
 }
 
 }  // namespace streamcvd::dual

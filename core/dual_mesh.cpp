@@ -1,24 +1,22 @@
 #include "core/dual_mesh.h"
 
-#include <tbb/parallel_sort.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <numeric>
 
+#include "core/dual_topology.h"
+
 namespace streamcvd {
 
 namespace {
 
-using Triple = std::array<uint32_t, 3>;
+using Triple = dual::Face;
 
-// Rotates (a, b, c) so the smallest id comes first, keeping the cyclic order (orientation).
-inline Triple canonical_rotation(uint32_t a, uint32_t b, uint32_t c) {
-  if (a < b && a < c) return {a, b, c};
-  if (b < a && b < c) return {b, c, a};
-  return {c, a, b};
-}
+inline Triple canonical_rotation(uint32_t a, uint32_t b, uint32_t c) { return dual::rotate_smallest_first(a, b, c); }
 
 // Number of faces holding both u and v: the intersection of two ascending face lists.
 inline uint32_t shared_faces(const MeshView& mesh, uint32_t u, uint32_t v) {
@@ -35,21 +33,28 @@ inline uint32_t shared_faces(const MeshView& mesh, uint32_t u, uint32_t v) {
 
 struct BoundaryEdge {
   uint32_t from, to;
+  bool operator<(const BoundaryEdge& o) const { return from != o.from ? from < o.from : to < o.to; }
 };
 
-// Directed boundary edges (u → v as in their only face), sorted by `from`.
+// Directed boundary edges (u → v as in their only face), sorted by (from, to): each chunk emits
+// those of the faces it owns (every boundary edge has one face, so it is emitted once), merged
+// in chunk order. Memory: the boundary, not V.
 std::vector<BoundaryEdge> directed_boundary_edges(const MeshView& mesh) {
-  std::vector<BoundaryEdge> edges;
+  const std::vector<dual::FaceRange> blocks = dual::chunk_face_blocks(mesh);
+  std::vector<std::vector<BoundaryEdge>> found(blocks.size());
   const uint32_t* T = mesh.triangles.data();
-  for (uint64_t f = 0; f < mesh.face_count(); ++f)
-    for (int i = 0; i < 3; ++i) {
-      uint32_t u = T[3 * f + i], v = T[3 * f + (i + 1) % 3];
-      if (u == v || !(mesh.vertex_flags[u] & kVertexBoundary) || !(mesh.vertex_flags[v] & kVertexBoundary)) continue;
-      if (shared_faces(mesh, u, v) == 1) edges.push_back({u, v});
-    }
-  std::sort(edges.begin(), edges.end(), [](const BoundaryEdge& x, const BoundaryEdge& y) {
-    return x.from != y.from ? x.from < y.from : x.to < y.to;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t b = r.begin(); b != r.end(); ++b)
+      for (uint64_t f = blocks[b].begin; f < blocks[b].end; ++f)
+        for (int i = 0; i < 3; ++i) {
+          const uint32_t u = T[3 * f + i], v = T[3 * f + (i + 1) % 3];
+          if (u == v || !(mesh.vertex_flags[u] & kVertexBoundary) || !(mesh.vertex_flags[v] & kVertexBoundary)) continue;
+          if (shared_faces(mesh, u, v) == 1) found[b].push_back({u, v});
+        }
   });
+  std::vector<BoundaryEdge> edges;
+  for (const auto& e : found) edges.insert(edges.end(), e.begin(), e.end());
+  std::sort(edges.begin(), edges.end());
   return edges;
 }
 
@@ -58,16 +63,23 @@ std::vector<BoundaryEdge> directed_boundary_edges(const MeshView& mesh) {
 BoundaryLoops find_boundary_loops(const MeshView& mesh) {
   BoundaryLoops loops;
   loops.offsets.push_back(0);
-  std::vector<BoundaryEdge> edges = directed_boundary_edges(mesh);
+  const std::vector<BoundaryEdge> edges = directed_boundary_edges(mesh);
   if (edges.empty()) return loops;
-  const uint32_t V = mesh.vertex_count();
-  // Successor of each boundary edge: the unique boundary edge leaving its `to` vertex.
-  std::vector<uint32_t> out_begin(V + 1, 0);
-  for (const BoundaryEdge& e : edges) ++out_begin[e.from + 1];
-  std::vector<uint32_t> in_count(V, 0);
-  for (const BoundaryEdge& e : edges) ++in_count[e.to];
-  std::partial_sum(out_begin.begin(), out_begin.end(), out_begin.begin());
-  auto simple = [&](uint32_t v) { return out_begin[v + 1] - out_begin[v] == 1 && in_count[v] == 1; };
+  // Successor of each boundary edge: the unique boundary edge leaving its `to` vertex. Edges are
+  // sorted by `from`, so a vertex's outgoing edges are one run (binary search), and its incoming
+  // ones a run of the sorted `to` ends.
+  std::vector<uint32_t> to(edges.size());
+  for (size_t e = 0; e < edges.size(); ++e) to[e] = edges[e].to;
+  std::sort(to.begin(), to.end());
+  auto out_begin = [&](uint32_t v) {
+    return uint32_t(std::lower_bound(edges.begin(), edges.end(), BoundaryEdge{v, 0}) - edges.begin());
+  };
+  auto simple = [&](uint32_t v) {
+    const uint32_t b = out_begin(v);
+    if (b >= edges.size() || edges[b].from != v || (b + 1 < edges.size() && edges[b + 1].from == v)) return false;
+    const auto in = std::equal_range(to.begin(), to.end(), v);
+    return in.second - in.first == 1;
+  };
   std::vector<uint8_t> visited(edges.size(), 0);
   std::vector<uint32_t> loop;
   for (uint32_t start = 0; start < edges.size(); ++start) {
@@ -79,7 +91,7 @@ BoundaryLoops find_boundary_loops(const MeshView& mesh) {
       loop.push_back(edges[e].from);
       uint32_t v = edges[e].to;
       if (!simple(v)) { usable = false; break; }
-      uint32_t next = out_begin[v];
+      uint32_t next = out_begin(v);
       if (next == start) { closed = true; break; }
       if (visited[next]) { usable = false; break; }
       e = next;
@@ -276,9 +288,7 @@ DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, 
                          const BoundaryLoops* boundary_loops) {
   DualMesh dual;
   // Non-empty clusters, in id order, become the output vertices.
-  std::vector<uint32_t> cluster_size(cluster_count, 0);
-  for (int32_t l : labels)
-    if (l >= 0) ++cluster_size[l];
+  const std::vector<uint32_t> cluster_size = dual::cluster_sizes(mesh, labels, cluster_count);
   std::vector<uint32_t> output_of_cluster(cluster_count, UINT32_MAX);
   for (uint32_t c = 0; c < cluster_count; ++c) {
     if (cluster_size[c] == 0) continue;
@@ -286,25 +296,29 @@ DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, 
     for (int k = 0; k < 3; ++k) dual.mesh.positions.push_back(float(cluster_positions[3 * size_t(c) + k]));
     dual.cluster_of_output_vertex.push_back(int32_t(c));
   }
-  std::vector<Triple> faces;
-  const uint32_t* T = mesh.triangles.data();
-  for (uint64_t f = 0; f < mesh.face_count(); ++f) {
-    int32_t a = labels[T[3 * f]], b = labels[T[3 * f + 1]], c = labels[T[3 * f + 2]];
-    if (a < 0 || b < 0 || c < 0 || a == b || b == c || a == c) continue;
-    faces.push_back(canonical_rotation(output_of_cluster[a], output_of_cluster[b], output_of_cluster[c]));
-  }
+  // The triples in cluster ids, renumbered: output_of_cluster is increasing on the non-empty
+  // clusters, so the renumbered triples stay rotated, sorted and unique.
+  dual::Triples triples = dual::collect_triples(mesh, labels);
+  std::vector<Triple>& faces = triples.faces;
+  for (Triple& t : faces)
+    for (uint32_t& x : t) x = output_of_cluster[x];
+  uint64_t emitted = triples.emitted;
   if (options.boundary_strips) {
+    std::vector<Triple> strips;
     if (boundary_loops) {
-      add_boundary_strips(mesh, *boundary_loops, labels, output_of_cluster, cluster_size, options, dual, faces);
+      add_boundary_strips(mesh, *boundary_loops, labels, output_of_cluster, cluster_size, options, dual, strips);
     } else {
       BoundaryLoops loops = find_boundary_loops(mesh);
-      add_boundary_strips(mesh, loops, labels, output_of_cluster, cluster_size, options, dual, faces);
+      add_boundary_strips(mesh, loops, labels, output_of_cluster, cluster_size, options, dual, strips);
     }
+    emitted += strips.size();
+    std::sort(strips.begin(), strips.end());
+    const size_t interior = faces.size();
+    faces.insert(faces.end(), strips.begin(), strips.end());
+    std::inplace_merge(faces.begin(), faces.begin() + std::ptrdiff_t(interior), faces.end());
+    faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
   }
-  tbb::parallel_sort(faces.begin(), faces.end());
-  size_t before = faces.size();
-  faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
-  dual.duplicate_faces_removed = before - faces.size();
+  dual.duplicate_faces_removed = emitted - faces.size();
   dual.mesh.triangles.reserve(faces.size() * 3);
   for (const Triple& t : faces) dual.mesh.triangles.insert(dual.mesh.triangles.end(), t.begin(), t.end());
   return dual;
@@ -315,86 +329,22 @@ std::vector<uint32_t> find_manifold_defects(const TriangleSoupView& mesh) {
   const uint32_t V = mesh.vertex_count();
   const uint32_t* T = mesh.triangles.data();
   std::vector<uint32_t> bad;
-  // Half-edges keyed by their undirected edge.
-  struct HalfEdge {
-    uint32_t lo, hi, face;
-    uint8_t forward;  // from == lo
-    uint8_t corner;   // index of `from` in its face
-  };
-  std::vector<HalfEdge> half(3 * F);
-  std::vector<uint8_t> degenerate(F, 0);
+  // Faces with a repeated index flag their corners; the others go to the fan test as they are
+  // (exact repeats included: the fan test flags an edge used twice in one direction).
+  std::vector<Triple> faces;
+  faces.reserve(F);
   for (uint64_t f = 0; f < F; ++f) {
-    uint32_t c[3] = {T[3 * f], T[3 * f + 1], T[3 * f + 2]};
-    if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2]) {
-      degenerate[f] = 1;
-      bad.insert(bad.end(), c, c + 3);
-    }
-    for (int i = 0; i < 3; ++i) {
-      uint32_t u = c[i], v = c[(i + 1) % 3];
-      half[3 * f + i] = {std::min(u, v), std::max(u, v), uint32_t(f), uint8_t(u < v), uint8_t(i)};
-    }
+    const Triple t = {T[3 * f], T[3 * f + 1], T[3 * f + 2]};
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) bad.insert(bad.end(), t.begin(), t.end());
+    else faces.push_back(t);
   }
-  tbb::parallel_sort(half.begin(), half.end(), [](const HalfEdge& x, const HalfEdge& y) {
-    return x.lo != y.lo ? x.lo < y.lo : (x.hi != y.hi ? x.hi < y.hi : x.face < y.face);
-  });
-  // Corners (f, i) of one vertex are joined through each manifold edge around it; a manifold
-  // vertex ends with all its corners in one set (one fan).
-  std::vector<uint32_t> parent(3 * F);
-  std::iota(parent.begin(), parent.end(), 0u);
-  auto find = [&](uint32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
-  auto unite = [&](uint32_t x, uint32_t y) {
-    x = find(x);
-    y = find(y);
-    if (x != y) parent[std::max(x, y)] = std::min(x, y);
-  };
-  auto corner_of = [&](uint32_t f, uint32_t v) {
-    for (uint32_t i = 0; i < 3; ++i)
-      if (T[3 * size_t(f) + i] == v) return 3 * f + i;
-    return 3 * f;
-  };
-  for (size_t i = 0; i < half.size();) {
-    size_t j = i;
-    while (j < half.size() && half[j].lo == half[i].lo && half[j].hi == half[i].hi) ++j;
-    const HalfEdge& h = half[i];
-    if (h.lo != h.hi && !degenerate[h.face]) {
-      size_t n = j - i;
-      if (n > 2 || (n == 2 && half[i].forward == half[i + 1].forward)) {
-        bad.push_back(h.lo);
-        bad.push_back(h.hi);
-      } else if (n == 2) {
-        uint32_t f1 = half[i].face, f2 = half[i + 1].face;
-        unite(corner_of(f1, h.lo), corner_of(f2, h.lo));
-        unite(corner_of(f1, h.hi), corner_of(f2, h.hi));
-      }
-    }
-    i = j;
+  std::vector<uint8_t> on_face(V, 0);  // V is the output's vertex count (K-sized)
+  for (const dual::FanVerdict& v : dual::check_fans(faces, [](uint32_t) { return true; })) {
+    on_face[v.vertex] = 1;
+    if (v.defective) bad.push_back(v.vertex);
   }
-  std::vector<uint32_t> root_of_vertex(V, UINT32_MAX);
-  std::vector<uint8_t> referenced(V, 0);
-  for (uint64_t f = 0; f < 3 * F; ++f) referenced[T[f]] = 1;
   for (uint32_t v = 0; v < V; ++v)
-    if (!referenced[v]) bad.push_back(v);
-  for (uint64_t f = 0; f < F; ++f) {
-    if (degenerate[f]) continue;
-    for (int i = 0; i < 3; ++i) {
-      uint32_t v = T[3 * f + i], r = find(uint32_t(3 * f + i));
-      if (root_of_vertex[v] == UINT32_MAX) root_of_vertex[v] = r;
-      else if (root_of_vertex[v] != r) bad.push_back(v);
-    }
-  }
-  // Duplicate faces: the same vertex set twice, in either orientation.
-  std::vector<Triple> sets(F);
-  for (uint64_t f = 0; f < F; ++f) {
-    Triple t = {T[3 * f], T[3 * f + 1], T[3 * f + 2]};
-    std::sort(t.begin(), t.end());
-    sets[f] = t;
-  }
-  tbb::parallel_sort(sets.begin(), sets.end());
-  for (size_t i = 1; i < sets.size(); ++i)
-    if (sets[i] == sets[i - 1]) bad.insert(bad.end(), sets[i].begin(), sets[i].end());
+    if (!on_face[v]) bad.push_back(v);  // on no face, or only on faces with a repeated index
   std::sort(bad.begin(), bad.end());
   bad.erase(std::unique(bad.begin(), bad.end()), bad.end());
   return bad;

@@ -226,7 +226,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   repair_options.clustering = options.clustering;
   repair_options.relax = !lloyd;  // a Lloyd run's report stays pure Lloyd
   DefectRepairResult repair =
-      repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options, result.clustering);
+      repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options, result.clustering, ram_storage());
   result.repair_rounds_used = repair.rounds;
   result.repaired_clusters = repair.repaired_clusters;
   result.repair_splits = repair.splits;

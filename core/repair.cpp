@@ -1,25 +1,49 @@
+// The repair loop (core/repair.h) with K-sized state. The vertices of the clusters a round
+// touches come from a cluster → vertices index (core/cluster_members.h) built once; every label
+// the repair writes goes through a change log of (vertex, old label), which updates the index
+// and tells the defect tracker where the dual may have changed. The tracker re-checks only the
+// dual around the changed clusters, with the dual triples and the fan test of
+// core/dual_topology.h (the ones build_dual_mesh and find_manifold_defects use). Per round:
+// O(vertices of the touched clusters + their faces) plus a few O(K) scans of byte and weight
+// arrays (candidates of the compensating merges) and O(boundary) for the strips; never O(V).
 #include "core/repair.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <numeric>
+#include <unordered_map>
+
+#include "core/cluster_members.h"
+#include "core/dual_topology.h"
 
 namespace streamcvd {
 
 namespace {
 
-// Multi-source BFS inside cluster `c` from `sources`; returns the last vertex reached, the
-// member farthest (in hops) from every source: the next farthest-point seed.
+// Position of vertex v in the ascending member list of its cluster.
+inline uint32_t slot_of(std::span<const uint32_t> members, uint32_t v) {
+  return uint32_t(std::lower_bound(members.begin(), members.end(), v) - members.begin());
+}
+
+// Multi-source BFS inside cluster `c` (whose members are `members`) from `sources`; returns the
+// last vertex reached, the member farthest (in hops) from every source: the next
+// farthest-point seed.
 uint32_t farthest_in_cluster(const MeshView& mesh, std::span<const int32_t> labels, int32_t c,
-                             std::span<const uint32_t> sources, std::vector<uint32_t>& queue,
-                             std::vector<uint32_t>& stamp, uint32_t mark) {
+                             std::span<const uint32_t> members, std::span<const uint32_t> sources,
+                             std::vector<uint32_t>& queue, std::vector<uint32_t>& stamp, uint32_t mark) {
   queue.assign(sources.begin(), sources.end());
-  for (uint32_t s : sources) stamp[s] = mark;
+  for (uint32_t s : sources) stamp[slot_of(members, s)] = mark;
   for (size_t h = 0; h < queue.size(); ++h)
     for (uint32_t n : mesh.neighbours(queue[h]))
-      if (labels[n] == c && stamp[n] != mark) {
-        stamp[n] = mark;
+      if (labels[n] == c) {
+        uint32_t& st = stamp[slot_of(members, n)];
+        if (st == mark) continue;
+        st = mark;
         queue.push_back(n);
       }
   return queue.back();
@@ -31,32 +55,36 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
                        std::span<const int32_t> new_labels, SplitScratch& scratch) {
   if (members.size() < 2 || new_labels.empty()) return 0;
   const int32_t c = labels[members[0]];
-  if (scratch.stamp.size() != mesh.vertex_count()) scratch.stamp.assign(mesh.vertex_count(), 0);
+  scratch.stamp.assign(members.size(), 0);
+  scratch.next_mark = 1;
   std::vector<uint32_t>& stamp = scratch.stamp;
-  std::vector<uint32_t> queue;
+  std::vector<uint32_t>& queue = scratch.queue;
   // Farthest-point seeds: the first is far from an arbitrary member, each next one is the
   // member farthest from all seeds chosen so far.
   std::vector<uint32_t> seeds;
   const uint32_t first = members[0];
-  seeds.push_back(farthest_in_cluster(mesh, labels, c, {&first, 1}, queue, stamp, scratch.next_mark++));
+  seeds.push_back(farthest_in_cluster(mesh, labels, c, members, {&first, 1}, queue, stamp, scratch.next_mark++));
   while (seeds.size() < new_labels.size() + 1 && seeds.size() < members.size()) {
-    uint32_t s = farthest_in_cluster(mesh, labels, c, seeds, queue, stamp, scratch.next_mark++);
+    uint32_t s = farthest_in_cluster(mesh, labels, c, members, seeds, queue, stamp, scratch.next_mark++);
     if (std::find(seeds.begin(), seeds.end(), s) != seeds.end()) break;
     seeds.push_back(s);
   }
   if (seeds.size() < 2) return 0;
   // Multi-source BFS: each member joins the seed that reaches it first; every part connected.
   const uint32_t mark = scratch.next_mark++;
-  std::vector<uint32_t> frontier = seeds;
+  std::vector<uint32_t>& frontier = queue;
+  frontier = seeds;
   for (size_t k = 0; k < seeds.size(); ++k) {
-    stamp[seeds[k]] = mark;
+    stamp[slot_of(members, seeds[k])] = mark;
     if (k > 0) labels[seeds[k]] = new_labels[k - 1];
   }
   for (size_t h = 0; h < frontier.size(); ++h) {
     uint32_t u = frontier[h];
     for (uint32_t n : mesh.neighbours(u))
-      if (labels[n] == c && stamp[n] != mark) {
-        stamp[n] = mark;
+      if (labels[n] == c) {
+        uint32_t& st = stamp[slot_of(members, n)];
+        if (st == mark) continue;
+        st = mark;
         labels[n] = labels[u];
         frontier.push_back(n);
       }
@@ -64,206 +92,90 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
   return uint32_t(seeds.size() - 1);
 }
 
-std::vector<int32_t> repair_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                                     uint32_t cluster_count, std::span<const int32_t> defect_clusters,
-                                     std::span<const uint8_t> adjustable, RepairRoundStats& stats) {
-  const uint32_t V = mesh.vertex_count();
-  const uint32_t K = cluster_count;
-  std::vector<uint8_t> is_defect(K, 0);
-  for (int32_t c : defect_clusters)
-    if (c >= 0 && uint32_t(c) < K) is_defect[c] = 1;
-  // Members of every cluster (CSR by label), weights, boundary contact.
-  std::vector<uint32_t> member_offsets(K + 1, 0);
-  std::vector<double> weight(K, 0.0);
-  std::vector<uint8_t> touches_boundary(K, 0);
-  for (uint32_t v = 0; v < V; ++v)
-    if (labels[v] >= 0) {
-      ++member_offsets[labels[v] + 1];
-      weight[labels[v]] += items.weight[v];
-      if (mesh.vertex_flags[v] & kVertexBoundary) touches_boundary[labels[v]] = 1;
-    }
-  std::partial_sum(member_offsets.begin(), member_offsets.end(), member_offsets.begin());
-  std::vector<uint32_t> members(member_offsets[K]);
-  {
-    std::vector<uint32_t> fill(member_offsets.begin(), member_offsets.end() - 1);
-    for (uint32_t v = 0; v < V; ++v)
-      if (labels[v] >= 0) members[fill[labels[v]]++] = v;
-  }
-  auto members_of = [&](int32_t c) {
-    return std::span<const uint32_t>(members.data() + member_offsets[c], member_offsets[c + 1] - member_offsets[c]);
-  };
-  // Neighbour clusters of the defect clusters; "near" marks defects and their neighbours,
-  // where no compensating merge may happen.
-  std::vector<uint8_t> near(K, 0);
-  std::vector<std::vector<int32_t>> neighbours_of_defect(K);
-  for (uint32_t c = 0; c < K; ++c) {
-    if (!is_defect[c]) continue;
-    near[c] = 1;
-    auto& list = neighbours_of_defect[c];
-    for (uint32_t v : members_of(int32_t(c)))
-      for (uint32_t n : mesh.neighbours(v))
-        if (labels[n] >= 0 && labels[n] != int32_t(c)) list.push_back(labels[n]);
-    std::sort(list.begin(), list.end());
-    list.erase(std::unique(list.begin(), list.end()), list.end());
-    for (int32_t n : list) near[n] = 1;
-  }
-  SplitScratch scratch;
-  std::vector<int32_t> touched;
-  std::vector<int32_t> free_ids;    // ids released by dissolved islands and merges
-  std::vector<int32_t> to_split;
-  for (uint32_t c = 0; c < K; ++c) {
-    if (!is_defect[c]) continue;
-    const auto& list = neighbours_of_defect[c];
-    if (list.size() == 1 && !touches_boundary[c] && !is_defect[list[0]]) {
-      // An island: its surrounding cluster takes it whole (stays connected: it encloses it).
-      for (uint32_t v : members_of(int32_t(c))) labels[v] = list[0];
-      free_ids.push_back(int32_t(c));
-      touched.push_back(list[0]);
-      ++stats.dissolved_islands;
-    } else if (members_of(int32_t(c)).size() >= 2) {
-      to_split.push_back(int32_t(c));
-    }
-  }
-  // Compensate so that the number of non-empty clusters stays K.
-  // A defective cluster is cut in two (measured: cutting in three fixed no more dragon defects
-  // and lost genus on fertility at N = 200 more often).
-  constexpr size_t kParts = 2;
-  auto ids_needed = [&] {
-    size_t n = 0;
-    for (int32_t c : to_split) n += std::min(kParts, members_of(c).size()) - 1;
-    return n;
-  };
-  if (ids_needed() > free_ids.size()) {
-    // Merge light adjacent pairs away from every defect: the lightest eligible clusters (a few
-    // times as many as needed, found in O(K)) propose their lightest neighbour; proposals are
-    // taken lightest pair first. Only the candidates' own vertices are scanned.
-    const size_t needed = ids_needed() - free_ids.size();
-    std::vector<int32_t> candidates;
-    for (uint32_t c = 0; c < K; ++c)
-      if (!near[c] && adjustable[c] && members_of(int32_t(c)).size() > 0) candidates.push_back(int32_t(c));
-    const size_t keep = std::min(candidates.size(), 8 * needed + 16);
-    auto lighter = [&](int32_t x, int32_t y) { return weight[x] != weight[y] ? weight[x] < weight[y] : x < y; };
-    std::nth_element(candidates.begin(), candidates.begin() + keep, candidates.end(), lighter);
-    candidates.resize(keep);
-    std::vector<int32_t> partner(K, -1);
-    for (int32_t a : candidates)
-      for (uint32_t v : members_of(a))
-        for (uint32_t n : mesh.neighbours(v)) {
-          int32_t b = labels[n];
-          if (b < 0 || b == a || near[b] || !adjustable[b]) continue;
-          if (partner[a] < 0 || lighter(b, partner[a])) partner[a] = b;
-        }
-    std::vector<int32_t> proposers;
-    for (int32_t a : candidates)
-      if (partner[a] >= 0) proposers.push_back(a);
-    auto pair_weight = [&](int32_t a) { return weight[a] + weight[partner[a]]; };
-    std::stable_sort(proposers.begin(), proposers.end(),
-                     [&](int32_t x, int32_t y) { return pair_weight(x) < pair_weight(y); });
-    std::vector<uint8_t> used(K, 0);
-    for (int32_t a : proposers) {
-      if (ids_needed() <= free_ids.size()) break;
-      int32_t b = partner[a];
-      if (used[a] || used[b]) continue;
-      used[a] = used[b] = 1;
-      for (uint32_t v : members_of(b)) labels[v] = a;
-      free_ids.push_back(b);
-      touched.push_back(a);
-      ++stats.merges;
-    }
-    while (!to_split.empty() && ids_needed() > free_ids.size()) to_split.pop_back();
-  }
-  for (int32_t c : to_split) {
-    size_t parts = std::min(kParts, members_of(c).size());
-    std::vector<int32_t> ids(free_ids.end() - std::ptrdiff_t(parts - 1), free_ids.end());
-    uint32_t made = split_cluster(mesh, labels, members_of(c), ids, scratch);
-    if (made == 0) continue;
-    touched.push_back(c);
-    for (uint32_t k = 0; k < made; ++k) touched.push_back(ids[k]);
-    // Ids the split could not use (too few far-apart members) stay free.
-    free_ids.resize(free_ids.size() - (parts - 1));
-    for (uint32_t k = made; k < parts - 1; ++k) free_ids.push_back(ids[k]);
-    ++stats.splits;
-  }
-  // Ids still free (more islands than splits): split the heaviest clusters.
-  if (!free_ids.empty()) {
-    std::vector<int32_t> order(K);
-    std::iota(order.begin(), order.end(), 0);
-    std::stable_sort(order.begin(), order.end(), [&](int32_t x, int32_t y) { return weight[x] > weight[y]; });
-    for (int32_t c : order) {
-      if (free_ids.empty()) break;
-      if (near[c] || !adjustable[c] || members_of(c).size() < 2) continue;
-      // Members recorded before merges: only clusters untouched this round are split here.
-      if (std::find(touched.begin(), touched.end(), c) != touched.end()) continue;
-      int32_t id = free_ids.back();
-      if (split_cluster(mesh, labels, members_of(c), {&id, 1}, scratch) == 0) continue;
-      free_ids.pop_back();
-      touched.push_back(c);
-      touched.push_back(id);
-      ++stats.splits;
-    }
-  }
-  std::sort(touched.begin(), touched.end());
-  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
-  return touched;
-}
-
-}  // namespace streamcvd
-
-namespace streamcvd {
-
 namespace {
 
-using Triple = std::array<uint32_t, 3>;
+using Triple = dual::Face;
 
-inline Triple rotate_smallest_first(uint32_t a, uint32_t b, uint32_t c) {
-  if (a < b && a < c) return {a, b, c};
-  if (b < a && b < c) return {b, c, a};
-  return {c, a, b};
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// True when the faces around vertex x (distinct oriented triples, each holding x) are not a
-// manifold neighbourhood: an edge at x in more than two faces or twice in one direction, faces
-// in more than one fan, or two faces on one vertex set. The same tests as
-// find_manifold_defects, restricted to the edges at x (a vertex's corners only join through
-// its own edges).
-bool vertex_defective(uint32_t x, std::span<const Triple> faces, std::vector<std::array<uint32_t, 3>>& entries,
-                      std::vector<uint32_t>& parent, std::vector<Triple>& sets) {
-  entries.clear();  // {neighbour, outgoing?, face}
-  for (uint32_t i = 0; i < faces.size(); ++i) {
-    const Triple& t = faces[i];
-    const int k = t[0] == x ? 0 : t[1] == x ? 1 : 2;
-    entries.push_back({t[(k + 1) % 3], 1, i});  // x → next
-    entries.push_back({t[(k + 2) % 3], 0, i});  // previous → x
+struct LabelChange {
+  uint32_t vertex;
+  int32_t old_label;
+};
+
+// Every label the repair writes: the labels themselves, the cluster → vertices index, the log
+// of (vertex, old label) since the last check, and the clusters whose members changed since
+// their per-cluster figures were last refreshed.
+class LabelEditor {
+ public:
+  LabelEditor(const MeshView& mesh, std::span<int32_t> labels, uint32_t K, ArrayStorage& storage)
+      : labels_(labels), members_(mesh, labels, K, storage), stale_(K, 0) {}
+
+  std::span<int32_t> labels() { return labels_; }
+  int32_t operator[](uint32_t v) const { return labels_[v]; }
+  const ClusterMembers& index() const { return members_; }
+  ClusterMembers& index() { return members_; }
+
+  void set(uint32_t v, int32_t label) {
+    const int32_t old = labels_[v];
+    if (old == label) return;
+    labels_[v] = label;
+    note(v, old);
   }
-  std::sort(entries.begin(), entries.end());
-  parent.resize(faces.size());
-  std::iota(parent.begin(), parent.end(), 0u);
-  auto find = [&](uint32_t a) {
-    while (parent[a] != a) a = parent[a] = parent[parent[a]];
-    return a;
-  };
-  uint32_t fans = uint32_t(faces.size());
-  for (size_t i = 0; i < entries.size();) {
-    size_t j = i;
-    uint32_t out = 0;
-    while (j < entries.size() && entries[j][0] == entries[i][0]) out += entries[j++][1];
-    const size_t n = j - i, in = n - out;
-    if (n > 2 || out == 2 || in == 2) return true;
-    if (n == 2) {
-      uint32_t a = find(entries[i][2]), b = find(entries[i + 1][2]);
-      if (a != b) {
-        parent[a] = b;
-        --fans;
-      }
+  // labels[v] was written by someone else (a split, the relaxation); `old` was its label.
+  void note(uint32_t v, int32_t old) {
+    const int32_t now = labels_[v];
+    if (old == now) return;
+    log_.push_back({v, old});
+    members_.moved(v, old, now);
+    mark_stale(old);
+    mark_stale(now);
+  }
+  std::vector<LabelChange> take_log() { return std::exchange(log_, {}); }
+  std::vector<int32_t> take_stale() {
+    for (int32_t c : stale_list_) stale_[c] = 0;
+    return std::exchange(stale_list_, {});
+  }
+
+ private:
+  void mark_stale(int32_t c) {
+    if (c >= 0 && !stale_[c]) {
+      stale_[c] = 1;
+      stale_list_.push_back(c);
     }
-    i = j;
   }
-  if (fans != 1) return true;
-  sets.assign(faces.begin(), faces.end());
-  for (Triple& t : sets) std::sort(t.begin(), t.end());
-  std::sort(sets.begin(), sets.end());
-  return std::adjacent_find(sets.begin(), sets.end()) != sets.end();
-}
+
+  std::span<int32_t> labels_;
+  ClusterMembers members_;
+  std::vector<LabelChange> log_;
+  std::vector<uint8_t> stale_;
+  std::vector<int32_t> stale_list_;
+};
+
+// A K-sized flag set that lists its members, so that clearing costs what was set.
+class ClusterSet {
+ public:
+  explicit ClusterSet(uint32_t K) : in_(K, 0) {}
+  bool insert(int32_t c) {
+    if (c < 0 || in_[c]) return false;
+    in_[c] = 1;
+    list_.push_back(c);
+    return true;
+  }
+  bool contains(int32_t c) const { return in_[c] != 0; }
+  const std::vector<int32_t>& list() const { return list_; }
+  std::span<const uint8_t> flags() const { return in_; }
+  void clear() {
+    for (int32_t c : list_) in_[c] = 0;
+    list_.clear();
+  }
+
+ private:
+  std::vector<uint8_t> in_;
+  std::vector<int32_t> list_;
+};
 
 // Labels-only defect finder on the dual of a clustering that changes a little at a time.
 // A dual vertex's defect status depends only on the faces around it, and a dual face changes
@@ -271,123 +183,129 @@ bool vertex_defective(uint32_t x, std::span<const Triple> faces, std::vector<std
 // on the changed vertices' 1-rings (and on boundary loops that changed) are re-checked.
 class DefectTracker {
  public:
-  DefectTracker(const MeshView& mesh, const BoundaryLoops& loops, uint32_t K, const DualMeshOptions& options)
-      : mesh_(mesh), loops_(loops), K_(K), strips_(options.boundary_strips), options_(options), defective_(K, 0), in_set_(K, 0) {}
+  DefectTracker(const MeshView& mesh, const BoundaryLoops& loops, uint32_t K, const DualMeshOptions& options,
+                const ClusterMembers& members)
+      : mesh_(mesh), loops_(loops), K_(K), strips_(options.boundary_strips), options_(options), members_(members),
+        set_(K), defective_(K, 0), has_faces_(K, 0) {
+    if (strips_)
+      for (uint32_t l = 0; l + 1 < loops.offsets.size(); ++l)
+        for (uint32_t i = loops.offsets[l]; i < loops.offsets[l + 1]; ++i) loop_of_vertex_.push_back({loops.vertices[i], l});
+    std::sort(loop_of_vertex_.begin(), loop_of_vertex_.end());
+  }
 
   // Checks every cluster. Returns the clusters on and around defects.
   std::vector<int32_t> check_all(std::span<const int32_t> labels) {
-    std::fill(in_set_.begin(), in_set_.end(), 1);
-    prev_.assign(labels.begin(), labels.end());
-    all_ = true;
-    std::vector<int32_t> bad = check(labels);
-    all_ = false;
-    return bad;
+    for (uint32_t c = 0; c < K_; ++c) set_.insert(int32_t(c));
+    return check(labels, true);
   }
 
-  // Re-checks the clusters whose faces may differ from the last check.
-  std::vector<int32_t> check_changes(std::span<const int32_t> labels) {
-    std::fill(in_set_.begin(), in_set_.end(), 0);
-    for (uint32_t c = 0; c < K_; ++c) in_set_[c] = defective_[c];
-    auto mark = [&](int32_t l) {
-      if (l >= 0) in_set_[l] = 1;
+  // Re-checks the clusters whose faces may differ since the last check: `log` lists the label
+  // changes since then, in order (a vertex may appear several times).
+  std::vector<int32_t> check_changes(std::span<const int32_t> labels, std::vector<LabelChange> log) {
+    // The label of each logged vertex at the last check: its first old label.
+    std::stable_sort(log.begin(), log.end(), [](const LabelChange& a, const LabelChange& b) { return a.vertex < b.vertex; });
+    log.erase(std::unique(log.begin(), log.end(), [](const LabelChange& a, const LabelChange& b) { return a.vertex == b.vertex; }),
+              log.end());
+    auto prev = [&](uint32_t v) {
+      auto it = std::lower_bound(log.begin(), log.end(), v, [](const LabelChange& a, uint32_t x) { return a.vertex < x; });
+      return it != log.end() && it->vertex == v ? it->old_label : labels[v];
     };
-    const uint32_t V = mesh_.vertex_count();
-    for (uint32_t v = 0; v < V; ++v) {
-      if (prev_[v] == labels[v]) continue;
-      mark(prev_[v]);
-      mark(labels[v]);
+    for (int32_t c : defective_list_) set_.insert(c);
+    std::vector<uint32_t> changed_loops;
+    for (const LabelChange& ch : log) {
+      const uint32_t v = ch.vertex;
+      if (ch.old_label == labels[v]) continue;  // changed and changed back
+      set_.insert(ch.old_label);
+      set_.insert(labels[v]);
       for (uint32_t n : mesh_.neighbours(v)) {
-        mark(prev_[n]);
-        mark(labels[n]);
+        set_.insert(prev(n));
+        set_.insert(labels[n]);
+      }
+      if (strips_ && (mesh_.vertex_flags[v] & kVertexBoundary)) {
+        auto it = std::lower_bound(loop_of_vertex_.begin(), loop_of_vertex_.end(), std::pair<uint32_t, uint32_t>{v, 0});
+        if (it != loop_of_vertex_.end() && it->first == v) changed_loops.push_back(it->second);
       }
     }
-    if (strips_)
-      for (size_t l = 0; l + 1 < loops_.offsets.size(); ++l) {
-        std::span<const uint32_t> loop(loops_.vertices.data() + loops_.offsets[l], loops_.offsets[l + 1] - loops_.offsets[l]);
-        bool changed = false;
-        for (uint32_t v : loop) changed |= prev_[v] != labels[v];
-        if (changed)
-          for (uint32_t v : loop) {
-            mark(prev_[v]);
-            mark(labels[v]);
-          }
+    std::sort(changed_loops.begin(), changed_loops.end());
+    changed_loops.erase(std::unique(changed_loops.begin(), changed_loops.end()), changed_loops.end());
+    for (uint32_t l : changed_loops)
+      for (uint32_t i = loops_.offsets[l]; i < loops_.offsets[l + 1]; ++i) {
+        set_.insert(prev(loops_.vertices[i]));
+        set_.insert(labels[loops_.vertices[i]]);
       }
-    std::copy(labels.begin(), labels.end(), prev_.begin());
-    return check(labels);
+    return check(labels, false);
   }
 
   uint64_t defect_vertices() const { return defect_vertices_; }
 
  private:
-  std::vector<int32_t> check(std::span<const int32_t> labels) {
-    const uint32_t V = mesh_.vertex_count();
-    std::vector<uint32_t> size(K_, 0);
-    for (int32_t l : labels)
-      if (l >= 0) ++size[l];
-    // Dual faces with a corner in the set, each once (from its first corner in the set).
+  std::vector<int32_t> check(std::span<const int32_t> labels, bool all) {
+    std::span<const uint32_t> size = members_.sizes();
+    // Dual faces with a corner in the set: every face when all clusters are in it.
     std::vector<Triple> faces;
-    const uint32_t* T = mesh_.triangles.data();
-    if (all_) {  // every face once, in face order
-      for (uint64_t f = 0; f < mesh_.face_count(); ++f) {
-        const int32_t a = labels[T[3 * f]], b = labels[T[3 * f + 1]], c = labels[T[3 * f + 2]];
-        if (a < 0 || b < 0 || c < 0 || a == b || b == c || a == c) continue;
-        faces.push_back(rotate_smallest_first(uint32_t(a), uint32_t(b), uint32_t(c)));
+    if (all) {
+      faces = dual::collect_triples(mesh_, labels).faces;
+    } else {
+      std::vector<uint32_t> vertices, members;
+      for (int32_t c : set_.list()) {
+        members_.members(c, members);
+        vertices.insert(vertices.end(), members.begin(), members.end());
       }
-    }
-    for (uint32_t v = 0; v < V && !all_; ++v) {
-      const int32_t lv = labels[v];
-      if (lv < 0 || !in_set_[lv]) continue;
-      for (uint32_t f : mesh_.faces_of(v)) {
-        const uint32_t* t = T + 3 * size_t(f);
-        const int32_t a = labels[t[0]], b = labels[t[1]], c = labels[t[2]];
-        if (a < 0 || b < 0 || c < 0 || a == b || b == c || a == c) continue;
-        const int first = in_set_[a] ? 0 : in_set_[b] ? 1 : 2;
-        if (t[first] != v) continue;
-        faces.push_back(rotate_smallest_first(uint32_t(a), uint32_t(b), uint32_t(c)));
-      }
+      faces = dual::triples_around(mesh_, labels, vertices, set_.flags());
     }
     uint32_t strip_vertices = 0;
     if (strips_) {
       std::vector<Triple> strip = boundary_strip_faces(mesh_, loops_, labels, K_, size, options_, strip_vertices);
+      std::sort(strip.begin(), strip.end());
+      const size_t interior = faces.size();
       faces.insert(faces.end(), strip.begin(), strip.end());
+      std::inplace_merge(faces.begin(), faces.begin() + std::ptrdiff_t(interior), faces.end());
+      faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
     }
-    std::sort(faces.begin(), faces.end());
-    faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
-    // Faces around each checked vertex (clusters in the set, every strip vertex).
-    std::vector<std::pair<uint32_t, uint32_t>> around;  // {vertex, face}
-    for (uint32_t i = 0; i < faces.size(); ++i)
-      for (uint32_t x : faces[i])
-        if (x >= K_ || in_set_[x]) around.push_back({x, i});
-    std::sort(around.begin(), around.end());
-    std::vector<int32_t> bad;
-    std::vector<Triple> fan, sets;
-    std::vector<std::array<uint32_t, 3>> entries;
-    std::vector<uint32_t> parent;
-    std::vector<uint8_t> has_faces(K_, 0);
-    defect_vertices_ = 0;
-    for (uint32_t c = 0; c < K_; ++c)
-      if (in_set_[c]) defective_[c] = 0;
-    for (size_t i = 0; i < around.size();) {
-      size_t j = i;
-      fan.clear();
-      while (j < around.size() && around[j].first == around[i].first) fan.push_back(faces[around[j++].second]);
-      const uint32_t x = around[i].first;
-      if (x < K_) has_faces[x] = 1;
-      if (vertex_defective(x, fan, entries, parent, sets)) {
-        ++defect_vertices_;
-        if (x < K_) defective_[x] = 1;
-        for (const Triple& t : fan)
-          for (uint32_t y : t)
-            if (y < K_) bad.push_back(int32_t(y));
-      }
-      i = j;
-    }
-    for (uint32_t c = 0; c < K_; ++c)
-      if (in_set_[c] && size[c] > 0 && !has_faces[c]) {  // a cluster on no dual face
+    // Verdicts for the clusters in the set and every strip vertex.
+    const std::vector<dual::FanVerdict> verdicts =
+        dual::check_fans(faces, [&](uint32_t x) { return x >= K_ || set_.contains(int32_t(x)); });
+    for (int32_t c : defective_list_) defective_[c] = 0;
+    std::vector<int32_t> still;  // defective clusters outside the set keep their status
+    for (int32_t c : defective_list_)
+      if (!set_.contains(c)) {
         defective_[c] = 1;
-        ++defect_vertices_;
-        bad.push_back(int32_t(c));
+        still.push_back(c);
       }
+    defective_list_ = std::move(still);
+    defect_vertices_ = 0;
+    std::vector<uint8_t> strip_bad(strip_vertices, 0);
+    for (const dual::FanVerdict& v : verdicts) {
+      if (v.vertex < K_) has_faces_[v.vertex] = 1;
+      if (!v.defective) continue;
+      ++defect_vertices_;
+      if (v.vertex < K_) {
+        defective_[v.vertex] = 1;
+        defective_list_.push_back(int32_t(v.vertex));
+      } else {
+        strip_bad[v.vertex - K_] = 1;
+      }
+    }
+    std::vector<int32_t> bad;
+    // The clusters of every face around a defective vertex.
+    for (const Triple& t : faces) {
+      bool around = false;
+      for (uint32_t x : t) around |= x < K_ ? defective_[x] != 0 && set_.contains(int32_t(x)) : strip_bad[x - K_] != 0;
+      if (around)
+        for (uint32_t y : t)
+          if (y < K_) bad.push_back(int32_t(y));
+    }
+    for (int32_t c : set_.list())
+      if (size[c] > 0 && !has_faces_[c]) {  // a cluster on no dual face
+        defective_[c] = 1;
+        defective_list_.push_back(c);
+        ++defect_vertices_;
+        bad.push_back(c);
+      }
+    for (const dual::FanVerdict& v : verdicts)
+      if (v.vertex < K_) has_faces_[v.vertex] = 0;
+    set_.clear();
+    std::sort(defective_list_.begin(), defective_list_.end());
     std::sort(bad.begin(), bad.end());
     bad.erase(std::unique(bad.begin(), bad.end()), bad.end());
     return bad;
@@ -398,14 +316,210 @@ class DefectTracker {
   const uint32_t K_;
   const bool strips_;
   const DualMeshOptions options_;
-  std::vector<uint8_t> defective_, in_set_;
-  std::vector<int32_t> prev_;
+  const ClusterMembers& members_;
+  ClusterSet set_;
+  std::vector<uint8_t> defective_, has_faces_;
+  std::vector<int32_t> defective_list_;
+  std::vector<std::pair<uint32_t, uint32_t>> loop_of_vertex_;  // {boundary loop vertex, loop}
   uint64_t defect_vertices_ = 0;
-  bool all_ = false;
 };
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+// One repair round at a time with state that persists across rounds: per-cluster weights and
+// boundary contact (refreshed for the clusters whose members changed), and K-sized flag arrays
+// cleared through their lists.
+class ClusterRepair {
+ public:
+  ClusterRepair(const MeshView& mesh, const ItemData& items, LabelEditor& labels, uint32_t K,
+                std::span<const uint8_t> adjustable)
+      : mesh_(mesh), items_(items), labels_(labels), K_(K), adjustable_(adjustable), weight_(K, 0.0),
+        touches_boundary_(K, 0), is_defect_(K), near_(K), used_(K), partner_(K, -1) {
+    std::vector<int32_t> all(K);
+    std::iota(all.begin(), all.end(), 0);
+    refresh(all);
+    labels_.take_stale();
+  }
+
+  // Splits and dissolves the clusters of `defect_clusters` (sorted, unique), keeping the
+  // cluster count with compensating merges or splits. Returns the clusters changed.
+  std::vector<int32_t> round(std::span<const int32_t> defect_clusters, RepairRoundStats& stats);
+
+ private:
+  // Weights are sums over the members in ascending vertex order: the same bits as a pass over
+  // the labels in vertex order would give.
+  void refresh(std::span<const int32_t> clusters) {
+    tbb::enumerable_thread_specific<std::vector<uint32_t>> scratch;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, clusters.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+      std::vector<uint32_t>& m = scratch.local();
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        const int32_t c = clusters[i];
+        labels_.index().members(c, m);
+        double w = 0;
+        uint8_t boundary = 0;
+        for (uint32_t v : m) {
+          w += items_.weight[v];
+          boundary |= mesh_.vertex_flags[v] & kVertexBoundary;
+        }
+        weight_[c] = w;
+        touches_boundary_[c] = boundary != 0;
+      }
+    });
+  }
+
+  // The members of c at the start of the round (every cluster the round reads is read before
+  // the round changes it, or was merged away: then its list is the one taken for the merge).
+  std::span<const uint32_t> members_of(int32_t c) {
+    auto [it, fresh] = round_members_.try_emplace(c);
+    if (fresh) labels_.index().members(c, it->second);
+    return it->second;
+  }
+  uint32_t size_of(int32_t c) {
+    auto it = round_members_.find(c);
+    return it != round_members_.end() ? uint32_t(it->second.size()) : labels_.index().size(c);
+  }
+
+  const MeshView& mesh_;
+  const ItemData& items_;
+  LabelEditor& labels_;
+  const uint32_t K_;
+  std::span<const uint8_t> adjustable_;
+  std::vector<double> weight_;
+  std::vector<uint8_t> touches_boundary_;
+  ClusterSet is_defect_, near_, used_;
+  std::vector<int32_t> partner_;
+  std::unordered_map<int32_t, std::vector<uint32_t>> round_members_;
+  SplitScratch scratch_;
+};
+
+std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_clusters, RepairRoundStats& stats) {
+  refresh(labels_.take_stale());
+  round_members_.clear();
+  for (int32_t c : defect_clusters)
+    if (c >= 0 && uint32_t(c) < K_) is_defect_.insert(c);
+  // Neighbour clusters of the defect clusters; "near" marks defects and their neighbours,
+  // where no compensating merge may happen.
+  std::vector<int32_t> defects = is_defect_.list();
+  std::sort(defects.begin(), defects.end());
+  std::vector<std::vector<int32_t>> neighbours_of_defect(defects.size());
+  for (size_t i = 0; i < defects.size(); ++i) {
+    const int32_t c = defects[i];
+    near_.insert(c);
+    auto& list = neighbours_of_defect[i];
+    for (uint32_t v : members_of(c))
+      for (uint32_t n : mesh_.neighbours(v))
+        if (labels_[n] >= 0 && labels_[n] != c) list.push_back(labels_[n]);
+    std::sort(list.begin(), list.end());
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+    for (int32_t n : list) near_.insert(n);
+  }
+  std::vector<int32_t> touched;
+  std::vector<int32_t> free_ids;  // ids released by dissolved islands and merges
+  std::vector<int32_t> to_split;
+  for (size_t i = 0; i < defects.size(); ++i) {
+    const int32_t c = defects[i];
+    const auto& list = neighbours_of_defect[i];
+    if (list.size() == 1 && !touches_boundary_[c] && !is_defect_.contains(list[0])) {
+      // An island: its surrounding cluster takes it whole (stays connected: it encloses it).
+      for (uint32_t v : members_of(c)) labels_.set(v, list[0]);
+      free_ids.push_back(c);
+      touched.push_back(list[0]);
+      ++stats.dissolved_islands;
+    } else if (size_of(c) >= 2) {
+      to_split.push_back(c);
+    }
+  }
+  // Compensate so that the number of non-empty clusters stays K.
+  // A defective cluster is cut in two (measured: cutting in three fixed no more dragon defects
+  // and lost genus on fertility at N = 200 more often).
+  constexpr size_t kParts = 2;
+  auto ids_needed = [&] {
+    size_t n = 0;
+    for (int32_t c : to_split) n += std::min<size_t>(kParts, size_of(c)) - 1;
+    return n;
+  };
+  if (ids_needed() > free_ids.size()) {
+    // Merge light adjacent pairs away from every defect: the lightest eligible clusters (a few
+    // times as many as needed, found in O(K)) propose their lightest neighbour; proposals are
+    // taken lightest pair first. Only the candidates' own vertices are scanned.
+    const size_t needed = ids_needed() - free_ids.size();
+    std::vector<int32_t> candidates;
+    const std::span<const uint32_t> size = labels_.index().sizes();
+    for (uint32_t c = 0; c < K_; ++c)
+      if (!near_.contains(int32_t(c)) && adjustable_[c] && size[c] > 0) candidates.push_back(int32_t(c));
+    const size_t keep = std::min(candidates.size(), 8 * needed + 16);
+    auto lighter = [&](int32_t x, int32_t y) { return weight_[x] != weight_[y] ? weight_[x] < weight_[y] : x < y; };
+    std::nth_element(candidates.begin(), candidates.begin() + std::ptrdiff_t(keep), candidates.end(), lighter);
+    candidates.resize(keep);
+    for (int32_t a : candidates)
+      for (uint32_t v : members_of(a))
+        for (uint32_t n : mesh_.neighbours(v)) {
+          const int32_t b = labels_[n];
+          if (b < 0 || b == a || near_.contains(b) || !adjustable_[b]) continue;
+          if (partner_[a] < 0 || lighter(b, partner_[a])) partner_[a] = b;
+        }
+    std::vector<int32_t> proposers;
+    for (int32_t a : candidates)
+      if (partner_[a] >= 0) proposers.push_back(a);
+    auto pair_weight = [&](int32_t a) { return weight_[a] + weight_[partner_[a]]; };
+    std::stable_sort(proposers.begin(), proposers.end(),
+                     [&](int32_t x, int32_t y) { return pair_weight(x) < pair_weight(y); });
+    for (int32_t a : proposers) {
+      if (ids_needed() <= free_ids.size()) break;
+      const int32_t b = partner_[a];
+      if (used_.contains(a) || used_.contains(b)) continue;
+      used_.insert(a);
+      used_.insert(b);
+      for (uint32_t v : members_of(b)) labels_.set(v, a);
+      free_ids.push_back(b);
+      touched.push_back(a);
+      ++stats.merges;
+    }
+    for (int32_t a : candidates) partner_[a] = -1;
+    used_.clear();
+    while (!to_split.empty() && ids_needed() > free_ids.size()) to_split.pop_back();
+  }
+  auto split = [&](int32_t c, std::span<const int32_t> ids) {
+    std::span<const uint32_t> members = members_of(c);
+    const uint32_t made = split_cluster(mesh_, labels_.labels(), members, ids, scratch_);
+    for (uint32_t v : members) labels_.note(v, c);
+    return made;
+  };
+  for (int32_t c : to_split) {
+    const size_t parts = std::min<size_t>(kParts, size_of(c));
+    std::vector<int32_t> ids(free_ids.end() - std::ptrdiff_t(parts - 1), free_ids.end());
+    const uint32_t made = split(c, ids);
+    if (made == 0) continue;
+    touched.push_back(c);
+    for (uint32_t k = 0; k < made; ++k) touched.push_back(ids[k]);
+    // Ids the split could not use (too few far-apart members) stay free.
+    free_ids.resize(free_ids.size() - (parts - 1));
+    for (uint32_t k = made; k < parts - 1; ++k) free_ids.push_back(ids[k]);
+    ++stats.splits;
+  }
+  // Ids still free (more islands than splits): split the heaviest clusters.
+  if (!free_ids.empty()) {
+    std::vector<int32_t> order(K_);
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(), [&](int32_t x, int32_t y) { return weight_[x] > weight_[y]; });
+    for (int32_t c : order) {
+      if (free_ids.empty()) break;
+      if (near_.contains(c) || !adjustable_[c]) continue;
+      // Only clusters untouched this round (whose members are the round's first) are split here;
+      // a cluster merged away has none left.
+      if (std::find(touched.begin(), touched.end(), c) != touched.end()) continue;
+      if (labels_.index().size(c) < 2) continue;
+      const int32_t id = free_ids.back();
+      if (split(c, {&id, 1}) == 0) continue;
+      free_ids.pop_back();
+      touched.push_back(c);
+      touched.push_back(id);
+      ++stats.splits;
+    }
+  }
+  is_defect_.clear();
+  near_.clear();
+  std::sort(touched.begin(), touched.end());
+  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  return touched;
 }
 
 }  // namespace
@@ -413,30 +527,43 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                                        uint32_t cluster_count, std::span<const uint8_t> adjustable,
                                        const BoundaryLoops& loops, const DefectRepairOptions& options,
-                                       ClusteringReport& report) {
+                                       ClusteringReport& report, ArrayStorage& storage) {
   const uint32_t K = cluster_count;
-  const uint32_t V = mesh.vertex_count();
   DefectRepairResult result;
   result.touched.assign(K, 0);
   auto t = std::chrono::steady_clock::now();
-  DefectTracker tracker(mesh, loops, K, options.dual);
+  LabelEditor editor(mesh, labels, K, storage);
+  DefectTracker tracker(mesh, loops, K, options.dual, editor.index());
   std::vector<int32_t> bad = tracker.check_all(labels);
   result.check_seconds += seconds_since(t);
+  if (bad.empty()) {
+    result.defect_vertices = tracker.defect_vertices();
+    return result;
+  }
+  t = std::chrono::steady_clock::now();
+  ClusterRepair repair(mesh, items, editor, K, adjustable);
+  result.repair_seconds += seconds_since(t);
   // Vertices of the clusters repaired around a defect, and of their neighbours: the region the
   // final relaxation leaves alone (relaxing it tends to rebuild the thin-feature clusters).
-  std::vector<uint8_t> near_defect(V, 0);
-  std::vector<uint8_t> is_bad(K, 0);
+  std::vector<uint32_t> near_defect, members;
+  size_t near_unique = 0;
   while (!bad.empty() && result.rounds < options.max_rounds) {
     t = std::chrono::steady_clock::now();
-    for (int32_t c : bad) is_bad[c] = 1;
-    for (uint32_t v = 0; v < V; ++v)
-      if (labels[v] >= 0 && is_bad[labels[v]]) {
-        near_defect[v] = 1;
-        for (uint32_t n : mesh.neighbours(v)) near_defect[n] = 1;
+    editor.index().compact();
+    for (int32_t c : bad) {
+      editor.index().members(c, members);
+      for (uint32_t v : members) {
+        near_defect.push_back(v);
+        for (uint32_t n : mesh.neighbours(v)) near_defect.push_back(n);
       }
-    for (int32_t c : bad) is_bad[c] = 0;
+    }
+    if (near_defect.size() > 2 * near_unique) {  // rounds revisit the same region: dedupe as it doubles
+      std::sort(near_defect.begin(), near_defect.end());
+      near_defect.erase(std::unique(near_defect.begin(), near_defect.end()), near_defect.end());
+      near_unique = near_defect.size();
+    }
     RepairRoundStats stats;
-    const std::vector<int32_t> touched = repair_clusters(mesh, items, labels, K, bad, adjustable, stats);
+    const std::vector<int32_t> touched = repair.round(bad, stats);
     for (int32_t c : touched) result.touched[c] = 1;
     result.repaired_clusters += touched.size();
     result.splits += stats.splits;
@@ -445,7 +572,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     ++result.rounds;
     result.repair_seconds += seconds_since(t);
     t = std::chrono::steady_clock::now();
-    bad = tracker.check_changes(labels);
+    bad = tracker.check_changes(labels, editor.take_log());
     result.check_seconds += seconds_since(t);
   }
   result.defect_vertices = tracker.defect_vertices();
@@ -456,17 +583,31 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   // clusters (measured on the dragon: an unfrozen relaxation always brought defects back).
   // The relaxation is kept only when the dual stays defect-free.
   t = std::chrono::steady_clock::now();
-  const std::vector<int32_t> before(labels.begin(), labels.end());
   std::vector<uint8_t> active = result.touched;
   // Whole clusters are frozen, so the 1-ring connectivity test stays exact for the others.
-  std::vector<uint8_t> frozen(K, 0);
-  for (uint32_t v = 0; v < V; ++v)
-    if (near_defect[v] && labels[v] >= 0) frozen[labels[v]] = 1;
-  for (uint32_t v = 0; v < V; ++v)
-    if (labels[v] >= 0 && frozen[labels[v]]) {
-      active[labels[v]] = 0;
-      labels[v] = -1;
-    }
+  ClusterSet frozen(K);
+  for (uint32_t v : near_defect) frozen.insert(labels[v]);
+  std::vector<int32_t> frozen_list = frozen.list();
+  std::sort(frozen_list.begin(), frozen_list.end());
+  std::vector<uint32_t> hidden;  // the frozen clusters' vertices, by cluster
+  std::vector<uint32_t> hidden_begin = {0};
+  for (int32_t c : frozen_list) {
+    editor.index().members(c, members);
+    hidden.insert(hidden.end(), members.begin(), members.end());
+    hidden_begin.push_back(uint32_t(hidden.size()));
+  }
+  // The relaxation writes labels directly: the labels before it, in the job's storage, tell
+  // which vertices it moved (the clustering loops themselves are O(V) anyway).
+  const std::vector<VertexRange> ranges = dual::chunk_vertex_blocks(mesh);
+  LargeArray<int32_t> before(labels.size(), storage, "labels before the relaxation");
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i)
+      std::copy(labels.begin() + ranges[i].begin, labels.begin() + ranges[i].end, before.begin() + ranges[i].begin);
+  });
+  for (size_t k = 0; k < frozen_list.size(); ++k) {
+    active[frozen_list[k]] = 0;
+    for (uint32_t i = hidden_begin[k]; i < hidden_begin[k + 1]; ++i) labels[hidden[i]] = -1;
+  }
   ClusterState state = make_cluster_state(items, labels, K, options.clustering.metric, options.clustering.qem_threshold);
   update_site_offsets(state);
   LoopOptions relax = loop_options(options.clustering);
@@ -474,13 +615,23 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   relax.stop_fraction = 0.0;
   relax.on_loop = {};
   run_clustering_loops(mesh, items, labels, state, relax, report, active);
-  for (uint32_t v = 0; v < V; ++v)
-    if (before[v] >= 0 && frozen[before[v]]) labels[v] = before[v];
-  if (tracker.check_changes(labels).empty()) {
+  for (size_t k = 0; k < frozen_list.size(); ++k)
+    for (uint32_t i = hidden_begin[k]; i < hidden_begin[k + 1]; ++i) labels[hidden[i]] = frozen_list[k];
+  std::vector<std::vector<LabelChange>> moved(ranges.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i)
+      for (uint32_t v = ranges[i].begin; v < ranges[i].end; ++v)
+        if (labels[v] != before[v]) moved[i].push_back({v, before[v]});
+  });
+  before.reset();
+  for (const auto& m : moved)
+    for (const LabelChange& ch : m) editor.note(ch.vertex, ch.old_label);
+  if (tracker.check_changes(labels, editor.take_log()).empty()) {
     result.relaxed = true;
   } else {
-    std::copy(before.begin(), before.end(), labels.begin());
-    tracker.check_changes(labels);
+    for (const auto& m : moved)
+      for (const LabelChange& ch : m) editor.set(ch.vertex, ch.old_label);
+    tracker.check_changes(labels, editor.take_log());
   }
   result.defect_vertices = tracker.defect_vertices();
   result.repair_seconds += seconds_since(t);

@@ -2,7 +2,7 @@
 // vertices, isolated vertices, duplicate faces). Defects come from features thinner than a
 // cluster: a cluster enclosed by one other (an island), wrapping a tube or a hole (fewer than
 // three neighbours), or meeting a neighbour along two separate frontiers. The repair splits
-// such clusters in three and dissolves islands into their surrounding cluster, and keeps the
+// such clusters in two and dissolves islands into their surrounding cluster, and keeps the
 // cluster count N exact by merging the lightest adjacent pairs far from any defect (or
 // splitting the heaviest clusters). Constrained clustering then relaxes the touched region.
 #pragma once
@@ -14,6 +14,7 @@
 #include "core/clustering.h"
 #include "core/dual_mesh.h"
 #include "core/item_data.h"
+#include "core/large_array.h"
 #include "core/mesh_view.h"
 
 namespace streamcvd {
@@ -22,23 +23,17 @@ struct RepairRoundStats {
   uint32_t splits = 0, dissolved_islands = 0, merges = 0;
 };
 
-/// One repair round on `labels` (K clusters, all non-empty before and after). Every cluster
-/// stays connected. Returns the clusters whose vertices changed (for the relaxation to start
-/// from). `adjustable` (size K) marks the clusters that compensating merges and splits may
-/// use (not those of small components copied as they are). O(V + E) per round. Deterministic.
-std::vector<int32_t> repair_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                                     uint32_t cluster_count, std::span<const int32_t> defect_clusters,
-                                     std::span<const uint8_t> adjustable, RepairRoundStats& stats);
-
-/// Per-vertex visit stamps reused across splits (one allocation per repair round).
+/// Scratch of split_cluster, reused across splits: stamps indexed by member position (sized by
+/// the cluster, never by V) and the BFS queue.
 struct SplitScratch {
-  std::vector<uint32_t> stamp;
+  std::vector<uint32_t> stamp, queue;
   uint32_t next_mark = 1;
 };
 
-/// Splits the cluster holding `members` into up to new_labels.size() + 1 connected parts grown
-/// by BFS from farthest-point seeds; part k > 0 takes new_labels[k − 1]. Returns the number of
-/// new labels used (0: the cluster could not be split). O(cluster size · parts).
+/// Splits the cluster whose vertices are `members` (all of them, ascending) into up to
+/// new_labels.size() + 1 connected parts grown by BFS from farthest-point seeds; part k > 0
+/// takes new_labels[k − 1]. Returns the number of new labels used (0: the cluster could not be
+/// split). O(cluster size · parts · log cluster size); reads only the members and their 1-rings.
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
                        std::span<const int32_t> new_labels, SplitScratch& scratch);
 
@@ -62,15 +57,22 @@ struct DefectRepairResult {
 };
 
 /// The repair loop: finds the clusters on and around dual-mesh defects (same defects as
-/// find_manifold_defects on the built dual, strips included), repairs them (repair_clusters),
-/// and re-checks only the dual around the vertices whose label changed, until no defect is left
-/// or max_rounds. Then relaxes the repaired clusters (constrained pass), keeping the relaxation
-/// only if the dual stays defect-free. Labels only: the dual's topology does not depend on
-/// vertex positions. First check O(V + F); each further round O(V) plus the changed region.
-/// Deterministic. Appends the relaxation loops to `report`.
+/// find_manifold_defects on the built dual, strips included), repairs them (splits in two,
+/// islands dissolved, the cluster count kept by merging light pairs far from any defect or
+/// splitting heavy clusters), and re-checks only the dual around the vertices whose label
+/// changed, until no defect is left or max_rounds. Then relaxes the repaired clusters
+/// (constrained pass), keeping the relaxation only if the dual stays defect-free. Labels only:
+/// the dual's topology does not depend on vertex positions.
+///
+/// Memory: a cluster → vertices index (4 bytes per vertex) and, for the relaxation, a copy of
+/// the labels (4 bytes per vertex), both from `storage`; the rest is sized by K, the boundary
+/// and the touched region. Time: the first check and the index O(V + F), chunk-parallel; each
+/// round O(vertices and faces of the clusters it touches) plus O(K) byte scans and O(boundary);
+/// the relaxation runs the clustering loops once (O(V)). Deterministic: the same labels for any
+/// thread count and any storage. Appends the relaxation loops to `report`.
 DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                                        uint32_t cluster_count, std::span<const uint8_t> adjustable,
                                        const BoundaryLoops& loops, const DefectRepairOptions& options,
-                                       ClusteringReport& report);
+                                       ClusteringReport& report, ArrayStorage& storage);
 
 }  // namespace streamcvd

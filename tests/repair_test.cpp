@@ -49,13 +49,13 @@ int check_rounds(const MeshBuffers& soup, uint32_t K) {
       options.max_rounds = rounds;
       options.relax = false;
       ClusteringReport report;
-      DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, options, report);
+      DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, options, report, ram_storage());
       EXPECT_EQ(r.defect_vertices, global_defects(view, labels, K, loops)) << "K " << K << " seed " << seed << " rounds " << rounds;
       EXPECT_LE(r.rounds, rounds);
     }
     std::vector<int32_t> labels = start;
     ClusteringReport report;
-    DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, {}, report);
+    DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, {}, report, ram_storage());
     EXPECT_EQ(r.defect_vertices, global_defects(view, labels, K, loops));
     if (r.defect_vertices == 0) {
       EXPECT_TRUE(clusters_connected(view, labels, K));
@@ -88,7 +88,7 @@ TEST(RepairLoop, CleanClusteringNeedsNoRound) {
   std::vector<uint8_t> adjustable(K, 1);
   std::vector<int32_t> before = labels;
   ClusteringReport report;
-  DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, {}, report);
+  DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, {}, report, ram_storage());
   ASSERT_EQ(global_defects(view, before, K, loops), 0u);
   EXPECT_EQ(r.rounds, 0u);
   EXPECT_EQ(r.defect_vertices, 0u);

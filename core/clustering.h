@@ -9,8 +9,10 @@
 #include <string>
 #include <vector>
 
+#include "core/chunked_components.h"
 #include "core/cluster_energy.h"
 #include "core/item_data.h"
+#include "core/large_array.h"
 #include "core/mesh_view.h"
 
 namespace streamcvd {
@@ -19,7 +21,9 @@ enum class SmallComponents { Keep, Drop };
 
 /// How many clusters each connected component of the mesh gets.
 struct ComponentBudget {
-  std::vector<uint32_t> component_of_vertex;  ///< UINT32_MAX for isolated vertices
+  /// Component of each vertex (V entries, from the storage given to plan_component_budget),
+  /// numbered by smallest vertex; UINT32_MAX (kNoComponent) for isolated vertices.
+  LargeArray<uint32_t> component_of_vertex;
   std::vector<uint32_t> clusters_per_component;
   std::vector<uint32_t> vertices_per_component;
   std::vector<uint8_t> component_closed;     ///< 1 when the component has no boundary vertex
@@ -34,9 +38,13 @@ struct ComponentBudget {
 /// vertex count) clusters, or one per vertex when it has at most 16 (Keep), or none (Drop);
 /// kept small components take at most a fifth of N (the lightest are dropped beyond it, with a
 /// note). No component gets more clusters than vertices.
-/// O(V + E). Deterministic.
+/// Components come from the chunk-wise union-find (core/chunked_components.h) over the ranges
+/// of sampling_ranges(mesh): memory is one range per thread plus the frontier records, and
+/// component_of_vertex is allocated from `storage` and written range by range.
+/// O(V + E), TBB-parallel over ranges; the result does not depend on the thread count or the
+/// storage.
 ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& items, uint32_t clusters,
-                                      SmallComponents small_components);
+                                      SmallComponents small_components, ArrayStorage& storage);
 
 /// Initial sampling (§VI-G): per component, grow regions from random free vertices until each
 /// holds D = component weight / its cluster count; when free vertices run out, steal single
@@ -45,6 +53,12 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
 /// O(V + E); deterministic for a seed.
 std::vector<int32_t> initial_sampling(const MeshView& mesh, const ItemData& items, const ComponentBudget& budget,
                                       uint64_t seed);
+
+/// The vertex ranges the budget works on (and, next, the sampling and the absorption): the
+/// store's chunks, cut by chunk_ranges into at least min(16, V / 65536) ranges (a store of one
+/// chunk still runs on every thread, a small mesh stays one range), or all vertices as one range
+/// for a view without a chunk table. Depends only on the chunk table and V.
+std::vector<VertexRange> sampling_ranges(const MeshView& mesh);
 
 struct ClusteringOptions {
   enum class Algorithm : uint8_t { Cvd, Lloyd };

@@ -191,7 +191,8 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options) {
   result.seconds.items = seconds_since(t);
 
   t = std::chrono::steady_clock::now();
-  result.budget = plan_component_budget(mesh, items, options.vertices, options.small_components);
+  // TODO(pipeline): the job's work space instead of RAM.
+  result.budget = plan_component_budget(mesh, items, options.vertices, options.small_components, ram_storage());
   const uint32_t K = result.budget.total_clusters;
   result.clusters = K;
   std::vector<int32_t> labels =

@@ -1,41 +1,79 @@
-// Component budget and initial sampling (paper §VI-G).
+// Component budget and initial sampling (paper §VI-G), range by range (DESIGN.md §4).
+//
+// Everything sized by V is either the caller's (labels, component ids: LargeArrays from its
+// storage) or one range's scratch per thread; what crosses ranges is K-sized (components, the
+// (range, component) *parts*, clusters) or frontier-sized (the absorption's candidate lists).
+// A range only ever writes its own vertices, and reads other ranges' labels only in a step where
+// nobody writes: the output is the same for any thread count.
+//   budget:   chunk-wise union-find → component ids per range → per-part sums → components.
+//   sampling: per-part sums → each component's clusters shared over its parts (largest
+//             remainder) → per range: exponential-race order, regions grown inside the range,
+//             steals → absorption of the free vertices (inside ranges, then across frontiers).
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <numeric>
 #include <random>
+#include <stdexcept>
+#include <unordered_map>
 
+#include "core/chunked_components.h"
 #include "core/clustering.h"
 
 namespace streamcvd {
 
 namespace {
 
-constexpr uint32_t kNoComponent = UINT32_MAX;
 constexpr uint32_t kVerbatimVertices = 16;
 constexpr double kSmallComponentShare = 0.2;
+constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
 
-// Vertex-connected components by BFS over the CSR graph; isolated vertices get kNoComponent.
-uint32_t label_components(const MeshView& mesh, std::vector<uint32_t>& component) {
-  const uint32_t V = mesh.vertex_count();
-  component.assign(V, kNoComponent);
-  std::vector<uint32_t> queue;
-  queue.reserve(1024);
-  uint32_t count = 0;
-  for (uint32_t seed = 0; seed < V; ++seed) {
-    if (component[seed] != kNoComponent || mesh.faces_of(seed).empty()) continue;
-    component[seed] = count;
-    queue.assign(1, seed);
-    for (size_t head = 0; head < queue.size(); ++head)
-      for (uint32_t n : mesh.neighbours(queue[head]))
-        if (component[n] == kNoComponent) {
-          component[n] = count;
-          queue.push_back(n);
-        }
-    ++count;
+// fn(i) for every range index, as TBB tasks of one range each.
+template <class Fn>
+void for_each_range(size_t count, const Fn& fn) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) fn(i);
+  });
+}
+
+// The vertices of one component inside one range: the unit the sampling shares clusters over.
+struct Part {
+  uint32_t component = kNone;
+  uint32_t vertices = 0;
+  double weight = 0;       // Σ item weights, summed in vertex order (deterministic)
+  uint8_t boundary = 0;    // some vertex is on a boundary edge
+  uint32_t clusters = 0;   // sampling: clusters this part grows
+};
+
+// Per-range sums by component. `component_of(v)` gives v's component or kNoComponent. The parts
+// come out sorted by component. `index` is the caller's per-thread scratch.
+template <class ComponentOf>
+void collect_parts(VertexRange r, const ComponentOf& component_of, std::span<const double> weight,
+                   std::span<const uint8_t> flags, std::unordered_map<uint32_t, uint32_t>& index,
+                   std::vector<Part>& out) {
+  out.clear();
+  index.clear();
+  uint32_t last_component = kNoComponent, last_part = 0;
+  for (uint32_t v = r.begin; v < r.end; ++v) {
+    const uint32_t c = component_of(v);
+    if (c == kNoComponent) continue;
+    if (c != last_component) {  // Hilbert order: runs of one component, few map look-ups
+      auto [it, inserted] = index.try_emplace(c, uint32_t(out.size()));
+      if (inserted) out.push_back(Part{c});
+      last_component = c;
+      last_part = it->second;
+    }
+    Part& p = out[last_part];
+    p.weight += weight[v];
+    ++p.vertices;
+    p.boundary |= uint8_t((flags[v] & kVertexBoundary) != 0);
   }
-  return count;
+  std::sort(out.begin(), out.end(), [](const Part& a, const Part& b) { return a.component < b.component; });
 }
 
 // Largest-remainder split of `budget` over `weights`, each share clamped to [lo_i, hi_i].
@@ -81,23 +119,81 @@ std::vector<uint32_t> proportional_split(const std::vector<double>& weights, uin
   return share;
 }
 
+// The mesh graph for chunked_components: every vertex on a face, joined to its neighbours (each
+// in-range edge once).
+RangeFill mesh_graph_fill(const MeshView& mesh) {
+  return [&mesh](size_t, VertexRange r, RangePieceBuilder& b) {
+    for (uint32_t v = r.begin; v < r.end; ++v) {
+      if (mesh.faces_of(v).empty()) continue;
+      b.add(v);
+      for (uint32_t n : mesh.neighbours(v))
+        if (n > v || !r.contains(n)) b.join(v, n);
+    }
+  };
+}
+
 }  // namespace
 
-ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& items, uint32_t clusters,
-                                      SmallComponents small_components) {
-  ComponentBudget b;
-  const uint32_t C = label_components(mesh, b.component_of_vertex);
+std::vector<VertexRange> sampling_ranges(const MeshView& mesh) {
   const uint32_t V = mesh.vertex_count();
+  if (mesh.chunks.empty()) return {VertexRange{0, V}};
+  // One range per chunk for a small mesh (ranges of a few hundred vertices would only cut its
+  // regions), up to 16 ranges from 1M vertices on so that every thread has work.
+  const uint32_t min_ranges = std::clamp<uint32_t>(V / 65536, 1, 16);
+  return chunk_ranges(mesh.chunks, 1u << 20, min_ranges);
+}
+
+ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& items, uint32_t clusters,
+                                      SmallComponents small_components, ArrayStorage& storage) {
+  ComponentBudget b;
+  const uint32_t V = mesh.vertex_count();
+  const std::vector<VertexRange> ranges = sampling_ranges(mesh);
+  // One union-find pass: each range's piece ids go straight into component_of_vertex, and the
+  // merge's table turns them into component ids in the pass that sums the parts.
+  const RangeFill fill = mesh_graph_fill(mesh);
+  b.component_of_vertex = LargeArray<uint32_t>(V, storage, "component of vertex");
+  std::vector<RangePieces> pieces(ranges.size());
+  {
+    tbb::enumerable_thread_specific<RangePieceBuilder> builders;
+    for_each_range(ranges.size(), [&](size_t i) {
+      const VertexRange r = ranges[i];
+      RangePieceBuilder& builder = builders.local();
+      builder.begin(r);
+      fill(i, r, builder);
+      pieces[i] = builder.finish(b.component_of_vertex.span().subspan(r.begin, r.size()));
+    });
+  }
+  const ComponentTable table = merge_range_pieces(ranges, pieces);
+  pieces = {};
+  const uint32_t C = uint32_t(table.components);
+  std::vector<std::vector<Part>> parts(ranges.size());
+  struct Scratch {
+    std::unordered_map<uint32_t, uint32_t> index;
+    std::vector<Part> parts;
+  };
+  tbb::enumerable_thread_specific<Scratch> scratch;
+  for_each_range(ranges.size(), [&](size_t i) {
+    const VertexRange r = ranges[i];
+    for (uint32_t v = r.begin; v < r.end; ++v) {
+      uint32_t& c = b.component_of_vertex[v];
+      if (c != kNoComponent) c = table.component(i, c);
+    }
+    Scratch& s = scratch.local();
+    collect_parts(r, [&](uint32_t v) { return b.component_of_vertex[v]; }, items.weight, mesh.vertex_flags, s.index,
+                  s.parts);
+    parts[i] = s.parts;
+  });
+  // Component sums: the parts in range order (the same for any thread count).
   std::vector<double> weight(C, 0.0);
   b.vertices_per_component.assign(C, 0);
   b.component_closed.assign(C, 1);
-  for (uint32_t v = 0; v < V; ++v) {
-    uint32_t c = b.component_of_vertex[v];
-    if (c == kNoComponent) continue;
-    weight[c] += items.weight[v];
-    ++b.vertices_per_component[c];
-    if (mesh.vertex_flags[v] & kVertexBoundary) b.component_closed[c] = 0;
-  }
+  for (const std::vector<Part>& range_parts : parts)
+    for (const Part& p : range_parts) {
+      weight[p.component] += p.weight;
+      b.vertices_per_component[p.component] += p.vertices;
+      if (p.boundary) b.component_closed[p.component] = 0;
+    }
+  parts = {};
   double total = std::accumulate(weight.begin(), weight.end(), 0.0);
   std::vector<uint32_t> lo(C), hi(C);
   std::vector<uint8_t> small(C, 0);

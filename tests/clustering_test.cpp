@@ -138,7 +138,7 @@ TEST(ClusteringSampling, EveryClusterNonEmptyLabelsInRangeBudgetExact) {
     SCOPED_TRACE(c.name);
     Stored m(c.mesh);
     ItemData items = compute_item_data(m.view);
-    ComponentBudget budget = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep);
+    ComponentBudget budget = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep, ram_storage());
     EXPECT_EQ(budget.total_clusters, c.clusters) << budget.note;
     ASSERT_EQ(budget.clusters_per_component.size(), 1u);
     for (uint64_t seed : {1ull, 2ull, 12345ull}) {
@@ -156,7 +156,7 @@ TEST(ClusteringSampling, BudgetSplitsOverComponentsInProportionToArea) {
   Stored m(soup);
   ItemData items = compute_item_data(m.view);
 
-  ComponentBudget keep = plan_component_budget(m.view, items, 500, SmallComponents::Keep);
+  ComponentBudget keep = plan_component_budget(m.view, items, 500, SmallComponents::Keep, ram_storage());
   ASSERT_EQ(keep.clusters_per_component.size(), 5u);
   EXPECT_EQ(keep.total_clusters, 500u) << keep.note;
   EXPECT_EQ(keep.small_components_kept, 3u);
@@ -180,7 +180,7 @@ TEST(ClusteringSampling, BudgetSplitsOverComponentsInProportionToArea) {
     EXPECT_EQ(component_of_label[l], int64_t(keep.component_of_vertex[v])) << "label " << l << " spans components";
   }
 
-  ComponentBudget drop = plan_component_budget(m.view, items, 500, SmallComponents::Drop);
+  ComponentBudget drop = plan_component_budget(m.view, items, 500, SmallComponents::Drop, ram_storage());
   EXPECT_EQ(drop.total_clusters, 500u) << drop.note;
   EXPECT_EQ(drop.components_dropped, 3u);
   EXPECT_EQ(drop.small_components_kept, 0u);
@@ -198,7 +198,7 @@ TEST(ClusteringSampling, BudgetSplitsOverComponentsInProportionToArea) {
 TEST(ClusteringSampling, MoreClustersThanVerticesIsCappedWithANote) {
   Stored m(make_grid(5, 5));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 40, SmallComponents::Keep);
+  ComponentBudget b = plan_component_budget(m.view, items, 40, SmallComponents::Keep, ram_storage());
   EXPECT_EQ(b.total_clusters, 25u);
   EXPECT_FALSE(b.note.empty());
   std::vector<int32_t> labels = initial_sampling(m.view, items, b, 3);
@@ -211,7 +211,7 @@ TEST(ClusteringSampling, IsolatedVerticesStayUnlabelled) {
   soup.positions.insert(soup.positions.end(), {5.0f, 5.0f, 5.0f, 6.0f, 6.0f, 6.0f});  // two unreferenced
   Stored m(soup);
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 12, SmallComponents::Keep);
+  ComponentBudget b = plan_component_budget(m.view, items, 12, SmallComponents::Keep, ram_storage());
   EXPECT_EQ(b.total_clusters, 12u);
   std::vector<int32_t> labels = initial_sampling(m.view, items, b, 3);
   expect_valid_labels(m.view, labels, b.total_clusters);  // checks the isolated ones are −1
@@ -222,7 +222,7 @@ TEST(ClusteringSampling, IsolatedVerticesStayUnlabelled) {
 TEST(ClusteringSampling, SameSeedSameLabelsDifferentSeedDifferentLabels) {
   Stored m(make_icosphere(3));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 64, SmallComponents::Keep);
+  ComponentBudget b = plan_component_budget(m.view, items, 64, SmallComponents::Keep, ram_storage());
   EXPECT_EQ(initial_sampling(m.view, items, b, 42), initial_sampling(m.view, items, b, 42));
   EXPECT_NE(initial_sampling(m.view, items, b, 42), initial_sampling(m.view, items, b, 43));
 }
@@ -251,7 +251,7 @@ TEST(ClusteringMinimize, EnergyNeverIncreasesWithinEachPass) {
       SCOPED_TRACE(c.name + " seed " + std::to_string(seed));
       Stored m(c.mesh);
       ItemData items = compute_item_data(m.view);
-      ComponentBudget b = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep);
+      ComponentBudget b = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep, ram_storage());
       const uint32_t K = b.total_clusters;
       std::vector<int32_t> labels = initial_sampling(m.view, items, b, seed);
       const double initial = clustering_energy(items, accumulate_clusters(items, labels, K));
@@ -279,7 +279,7 @@ TEST(ClusteringMinimize, PassByPassEnergyMonotoneWithAndWithoutSkip) {
   // The same passes driven one by one, with the §VI-A modified-clusters skip on and off.
   Stored m(make_icosphere(4));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 200, SmallComponents::Keep);
+  ComponentBudget b = plan_component_budget(m.view, items, 200, SmallComponents::Keep, ram_storage());
   const uint32_t K = b.total_clusters;
   for (bool skip : {true, false}) {
     SCOPED_TRACE(skip ? "skip unchanged" : "test every edge");
@@ -311,7 +311,7 @@ TEST(ClusteringMinimize, EveryClusterConnectedAfterConstrainedPass) {
       SCOPED_TRACE(c.name + " seed " + std::to_string(seed));
       Stored m(c.mesh);
       ItemData items = compute_item_data(m.view);
-      ComponentBudget b = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep);
+      ComponentBudget b = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep, ram_storage());
       const uint32_t K = b.total_clusters;
       std::vector<int32_t> labels = initial_sampling(m.view, items, b, seed);
       minimize_clustering(m.view, items, labels, K);
@@ -327,7 +327,7 @@ TEST(ClusteringMinimize, InactiveClustersAreNotTested) {
   // active, an unconverged clustering is left as it is; if all are, it moves.
   Stored m(make_icosphere(3));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 40, SmallComponents::Keep);
+  ComponentBudget b = plan_component_budget(m.view, items, 40, SmallComponents::Keep, ram_storage());
   const uint32_t K = b.total_clusters;
   const std::vector<int32_t> initial = initial_sampling(m.view, items, b, 8);
   std::vector<int32_t> labels = initial;
@@ -351,7 +351,7 @@ TEST(ClusteringMinimize, ConvergedClusteringIsAFixedPoint) {
   // pass moves nothing.
   Stored m(make_torus(50, 20));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 80, SmallComponents::Keep);
+  ComponentBudget b = plan_component_budget(m.view, items, 80, SmallComponents::Keep, ram_storage());
   std::vector<int32_t> labels = initial_sampling(m.view, items, b, 9);
   minimize_clustering(m.view, items, labels, b.total_clusters);
   std::vector<int32_t> before = labels;
@@ -371,7 +371,7 @@ TEST(ClusteringMinimize, ClustersOnAFlatGridAreCompactAndBalanced) {
   // On a uniform grid the converged clusters have similar areas (CVD: near-equal cells).
   Stored m(make_grid(60, 60));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 36, SmallComponents::Keep);
+  ComponentBudget b = plan_component_budget(m.view, items, 36, SmallComponents::Keep, ram_storage());
   std::vector<int32_t> labels = initial_sampling(m.view, items, b, 1);
   minimize_clustering(m.view, items, labels, b.total_clusters);
   std::vector<ClusterSums> sums = accumulate_clusters(items, labels, b.total_clusters);

@@ -91,7 +91,7 @@ TEST(ParallelClustering, EnergyWithinATenthOfAPercentOfSerial) {
   const MeshView view = store.view();
   ItemData items = compute_item_data(view);
   items.quadric = vertex_quadrics(view, items.origin);
-  const ComponentBudget budget = plan_component_budget(view, items, 2000, SmallComponents::Keep);
+  const ComponentBudget budget = plan_component_budget(view, items, 2000, SmallComponents::Keep, ram_storage());
   auto energy = [&](Metric metric, uint32_t threads, bool deterministic, std::vector<int32_t> labels) {
     ClusteringOptions o;
     o.metric = metric;
@@ -159,7 +159,7 @@ TEST(ParallelClustering, ConstrainedPassKeepsEveryClusterConnected) {
   MeshStore store = MeshStore::build(sphere.view());
   const MeshView view = store.view();
   const ItemData items = compute_item_data(view);
-  const ComponentBudget budget = plan_component_budget(view, items, 600, SmallComponents::Keep);
+  const ComponentBudget budget = plan_component_budget(view, items, 600, SmallComponents::Keep, ram_storage());
   for (uint32_t threads : {2u, 8u}) {
     std::vector<int32_t> labels = initial_sampling(view, items, budget, 5);
     ClusteringOptions o;

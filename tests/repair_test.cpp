@@ -28,7 +28,7 @@ size_t global_defects(const MeshView& view, const std::vector<int32_t>& labels, 
 // Labels of a random clustering: region growing from random seeds (many small, twisted
 // clusters, so the dual has defects), without any minimisation.
 std::vector<int32_t> rough_clustering(const MeshView& view, const ItemData& items, uint32_t K, uint64_t seed) {
-  ComponentBudget budget = plan_component_budget(view, items, K, SmallComponents::Keep);
+  ComponentBudget budget = plan_component_budget(view, items, K, SmallComponents::Keep, ram_storage());
   return initial_sampling(view, items, budget, seed);
 }
 

@@ -49,7 +49,7 @@ struct Fixture {
     items.quadric = vertex_quadrics(mesh.view, items.origin);
     ComponentBudget b = plan_component_budget(mesh.view, items, 30, SmallComponents::Keep, ram_storage());
     K = b.total_clusters;
-    labels = initial_sampling(mesh.view, items, b, 3);
+    labels = test::to_vector(initial_sampling(mesh.view, items, b, 3, ram_storage()));
   }
 };
 

@@ -142,7 +142,7 @@ TEST(ClusteringSampling, EveryClusterNonEmptyLabelsInRangeBudgetExact) {
     EXPECT_EQ(budget.total_clusters, c.clusters) << budget.note;
     ASSERT_EQ(budget.clusters_per_component.size(), 1u);
     for (uint64_t seed : {1ull, 2ull, 12345ull}) {
-      std::vector<int32_t> labels = initial_sampling(m.view, items, budget, seed);
+      std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, budget, seed, ram_storage()));
       expect_valid_labels(m.view, labels, budget.total_clusters);
     }
   }
@@ -169,7 +169,7 @@ TEST(ClusteringSampling, BudgetSplitsOverComponentsInProportionToArea) {
   EXPECT_EQ(sorted[2], 4u);
   EXPECT_NEAR(double(sorted[3]), 488.0 / 5.0, 2.0);
   EXPECT_NEAR(double(sorted[4]), 488.0 * 4.0 / 5.0, 2.0);
-  std::vector<int32_t> labels = initial_sampling(m.view, items, keep, 7);
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, keep, 7, ram_storage()));
   expect_valid_labels(m.view, labels, keep.total_clusters);
   // Labels never cross components.
   std::vector<int64_t> component_of_label(keep.total_clusters, -1);
@@ -184,7 +184,7 @@ TEST(ClusteringSampling, BudgetSplitsOverComponentsInProportionToArea) {
   EXPECT_EQ(drop.total_clusters, 500u) << drop.note;
   EXPECT_EQ(drop.components_dropped, 3u);
   EXPECT_EQ(drop.small_components_kept, 0u);
-  std::vector<int32_t> dropped = initial_sampling(m.view, items, drop, 7);
+  std::vector<int32_t> dropped = test::to_vector(initial_sampling(m.view, items, drop, 7, ram_storage()));
   for (uint32_t v = 0; v < m.view.vertex_count(); ++v) {
     uint32_t c = drop.component_of_vertex[v];
     if (drop.clusters_per_component[c] == 0) {
@@ -201,7 +201,7 @@ TEST(ClusteringSampling, MoreClustersThanVerticesIsCappedWithANote) {
   ComponentBudget b = plan_component_budget(m.view, items, 40, SmallComponents::Keep, ram_storage());
   EXPECT_EQ(b.total_clusters, 25u);
   EXPECT_FALSE(b.note.empty());
-  std::vector<int32_t> labels = initial_sampling(m.view, items, b, 3);
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 3, ram_storage()));
   std::vector<uint32_t> size = expect_valid_labels(m.view, labels, b.total_clusters);
   for (uint32_t s : size) EXPECT_EQ(s, 1u);
 }
@@ -213,7 +213,7 @@ TEST(ClusteringSampling, IsolatedVerticesStayUnlabelled) {
   ItemData items = compute_item_data(m.view);
   ComponentBudget b = plan_component_budget(m.view, items, 12, SmallComponents::Keep, ram_storage());
   EXPECT_EQ(b.total_clusters, 12u);
-  std::vector<int32_t> labels = initial_sampling(m.view, items, b, 3);
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 3, ram_storage()));
   expect_valid_labels(m.view, labels, b.total_clusters);  // checks the isolated ones are −1
   uint32_t unlabelled = uint32_t(std::count(labels.begin(), labels.end(), -1));
   EXPECT_EQ(unlabelled, 2u);
@@ -223,8 +223,9 @@ TEST(ClusteringSampling, SameSeedSameLabelsDifferentSeedDifferentLabels) {
   Stored m(make_icosphere(3));
   ItemData items = compute_item_data(m.view);
   ComponentBudget b = plan_component_budget(m.view, items, 64, SmallComponents::Keep, ram_storage());
-  EXPECT_EQ(initial_sampling(m.view, items, b, 42), initial_sampling(m.view, items, b, 42));
-  EXPECT_NE(initial_sampling(m.view, items, b, 42), initial_sampling(m.view, items, b, 43));
+  auto sample = [&](uint64_t seed) { return test::to_vector(initial_sampling(m.view, items, b, seed, ram_storage())); };
+  EXPECT_EQ(sample(42), sample(42));
+  EXPECT_NE(sample(42), sample(43));
 }
 
 // --- Algorithm 1, cleaning, constrained pass ----------------------------------------------------
@@ -253,7 +254,7 @@ TEST(ClusteringMinimize, EnergyNeverIncreasesWithinEachPass) {
       ItemData items = compute_item_data(m.view);
       ComponentBudget b = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep, ram_storage());
       const uint32_t K = b.total_clusters;
-      std::vector<int32_t> labels = initial_sampling(m.view, items, b, seed);
+      std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, seed, ram_storage()));
       const double initial = clustering_energy(items, accumulate_clusters(items, labels, K));
 
       ClusteringReport report = minimize_clustering(m.view, items, labels, K);
@@ -283,7 +284,7 @@ TEST(ClusteringMinimize, PassByPassEnergyMonotoneWithAndWithoutSkip) {
   const uint32_t K = b.total_clusters;
   for (bool skip : {true, false}) {
     SCOPED_TRACE(skip ? "skip unchanged" : "test every edge");
-    std::vector<int32_t> labels = initial_sampling(m.view, items, b, 5);
+    std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 5, ram_storage()));
     ClusterState state = make_cluster_state(items, labels, K, Metric::I);
     ClusteringReport free_pass;
     LoopOptions pass;
@@ -313,7 +314,7 @@ TEST(ClusteringMinimize, EveryClusterConnectedAfterConstrainedPass) {
       ItemData items = compute_item_data(m.view);
       ComponentBudget b = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep, ram_storage());
       const uint32_t K = b.total_clusters;
-      std::vector<int32_t> labels = initial_sampling(m.view, items, b, seed);
+      std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, seed, ram_storage()));
       minimize_clustering(m.view, items, labels, K);
       expect_valid_labels(m.view, labels, K);
       EXPECT_TRUE(clusters_connected(m.view, labels, K));
@@ -329,7 +330,7 @@ TEST(ClusteringMinimize, InactiveClustersAreNotTested) {
   ItemData items = compute_item_data(m.view);
   ComponentBudget b = plan_component_budget(m.view, items, 40, SmallComponents::Keep, ram_storage());
   const uint32_t K = b.total_clusters;
-  const std::vector<int32_t> initial = initial_sampling(m.view, items, b, 8);
+  const std::vector<int32_t> initial = test::to_vector(initial_sampling(m.view, items, b, 8, ram_storage()));
   std::vector<int32_t> labels = initial;
   ClusterState state = make_cluster_state(items, labels, K, Metric::I);
   ClusteringReport none;
@@ -352,7 +353,7 @@ TEST(ClusteringMinimize, ConvergedClusteringIsAFixedPoint) {
   Stored m(make_torus(50, 20));
   ItemData items = compute_item_data(m.view);
   ComponentBudget b = plan_component_budget(m.view, items, 80, SmallComponents::Keep, ram_storage());
-  std::vector<int32_t> labels = initial_sampling(m.view, items, b, 9);
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 9, ram_storage()));
   minimize_clustering(m.view, items, labels, b.total_clusters);
   std::vector<int32_t> before = labels;
   ClusterState state = make_cluster_state(items, labels, b.total_clusters, Metric::I);
@@ -372,7 +373,7 @@ TEST(ClusteringMinimize, ClustersOnAFlatGridAreCompactAndBalanced) {
   Stored m(make_grid(60, 60));
   ItemData items = compute_item_data(m.view);
   ComponentBudget b = plan_component_budget(m.view, items, 36, SmallComponents::Keep, ram_storage());
-  std::vector<int32_t> labels = initial_sampling(m.view, items, b, 1);
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 1, ram_storage()));
   minimize_clustering(m.view, items, labels, b.total_clusters);
   std::vector<ClusterSums> sums = accumulate_clusters(items, labels, b.total_clusters);
   double lo = 1e300, hi = 0;

@@ -49,7 +49,7 @@ struct Sampled {
     items.quadric = vertex_quadrics(m.view, items.origin);
     ComponentBudget b = plan_component_budget(m.view, items, clusters, SmallComponents::Keep, ram_storage());
     K = b.total_clusters;
-    initial = initial_sampling(m.view, items, b, seed);
+    initial = test::to_vector(initial_sampling(m.view, items, b, seed, ram_storage()));
   }
   double energy(std::span<const int32_t> labels, Metric metric) const {
     ClusterState s = make_cluster_state(items, labels, K, metric);

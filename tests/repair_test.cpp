@@ -29,7 +29,7 @@ size_t global_defects(const MeshView& view, const std::vector<int32_t>& labels, 
 // clusters, so the dual has defects), without any minimisation.
 std::vector<int32_t> rough_clustering(const MeshView& view, const ItemData& items, uint32_t K, uint64_t seed) {
   ComponentBudget budget = plan_component_budget(view, items, K, SmallComponents::Keep, ram_storage());
-  return initial_sampling(view, items, budget, seed);
+  return test::to_vector(initial_sampling(view, items, budget, seed, ram_storage()));
 }
 
 // Returns how many of the starts had a defect.
@@ -96,12 +96,13 @@ TEST(RepairLoop, CleanClusteringNeedsNoRound) {
 }
 
 TEST(RepairDragon, SlowSeedsConvergeWithinTheRoundBudget) {
-  // Dragon, N = 20000, metric I: these seeds needed 13 and 19 repair rounds. With the former
-  // cap of 12 the last-resort cleanup deleted faces and vertices (holes, fewer than N).
+  // Dragon, N = 20000, metric I: these seeds need 14 and 20 repair rounds (the chunk-wise
+  // initial sampling; seeds 1-60 need 6-39, 9 of them more than 12). With the former cap of 12
+  // the last-resort cleanup deleted faces and vertices (holes, fewer than N).
   const auto path = test::shared_data_path("stanford_dragon_vrip.ply");
   if (!path) GTEST_SKIP() << "../shared/data absent";
   MeshStore store = MeshStore::build(read_mesh(*path).view());
-  for (uint64_t seed : {3, 10}) {
+  for (uint64_t seed : {3, 28}) {
     RemeshOptions o;
     o.vertices = 20000;
     o.seed = seed;

@@ -191,11 +191,12 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   result.seconds.items = seconds_since(t);
 
   t = std::chrono::steady_clock::now();
-  result.budget = plan_component_budget(mesh, items, options.vertices, options.small_components);
+  // TODO(pipeline): the job's work space instead of RAM (the labels stay in it until the end).
+  result.budget = plan_component_budget(mesh, items, options.vertices, options.small_components, ram_storage());
   const uint32_t K = result.budget.total_clusters;
   result.clusters = K;
-  std::vector<int32_t> labels =
-      initial_sampling(mesh, is_anisotropic(metric) ? sampling_items : items, result.budget, options.seed);
+  LargeArray<int32_t> labels = initial_sampling(mesh, is_anisotropic(metric) ? sampling_items : items, result.budget,
+                                                options.seed, ram_storage());
   sampling_items = ItemData{};
   result.seconds.sampling = seconds_since(t);
 
@@ -322,7 +323,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   result.holes_closed = dual.holes_closed;
   result.clusters_connected = clusters_connected(mesh, labels, K);
   result.mesh = std::move(dual.mesh);
-  result.cluster_of_vertex = std::move(labels);
+  result.cluster_of_vertex.assign(labels.begin(), labels.end());
   return result;
 }
 

@@ -47,9 +47,9 @@ struct Fixture {
     items = compute_item_data(mesh.view);
     attach_tensors(items, large_array_of(std::span<const float>(random_tensors(mesh.view.vertex_count(), 7))));
     items.quadric = vertex_quadrics(mesh.view, items.origin);
-    ComponentBudget b = plan_component_budget(mesh.view, items, 30, SmallComponents::Keep);
+    ComponentBudget b = plan_component_budget(mesh.view, items, 30, SmallComponents::Keep, ram_storage());
     K = b.total_clusters;
-    labels = initial_sampling(mesh.view, items, b, 3);
+    labels = test::to_vector(initial_sampling(mesh.view, items, b, 3, ram_storage()));
   }
 };
 

@@ -138,11 +138,11 @@ TEST(ClusteringSampling, EveryClusterNonEmptyLabelsInRangeBudgetExact) {
     SCOPED_TRACE(c.name);
     Stored m(c.mesh);
     ItemData items = compute_item_data(m.view);
-    ComponentBudget budget = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep);
+    ComponentBudget budget = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep, ram_storage());
     EXPECT_EQ(budget.total_clusters, c.clusters) << budget.note;
     ASSERT_EQ(budget.clusters_per_component.size(), 1u);
     for (uint64_t seed : {1ull, 2ull, 12345ull}) {
-      std::vector<int32_t> labels = initial_sampling(m.view, items, budget, seed);
+      std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, budget, seed, ram_storage()));
       expect_valid_labels(m.view, labels, budget.total_clusters);
     }
   }
@@ -156,7 +156,7 @@ TEST(ClusteringSampling, BudgetSplitsOverComponentsInProportionToArea) {
   Stored m(soup);
   ItemData items = compute_item_data(m.view);
 
-  ComponentBudget keep = plan_component_budget(m.view, items, 500, SmallComponents::Keep);
+  ComponentBudget keep = plan_component_budget(m.view, items, 500, SmallComponents::Keep, ram_storage());
   ASSERT_EQ(keep.clusters_per_component.size(), 5u);
   EXPECT_EQ(keep.total_clusters, 500u) << keep.note;
   EXPECT_EQ(keep.small_components_kept, 3u);
@@ -169,7 +169,7 @@ TEST(ClusteringSampling, BudgetSplitsOverComponentsInProportionToArea) {
   EXPECT_EQ(sorted[2], 4u);
   EXPECT_NEAR(double(sorted[3]), 488.0 / 5.0, 2.0);
   EXPECT_NEAR(double(sorted[4]), 488.0 * 4.0 / 5.0, 2.0);
-  std::vector<int32_t> labels = initial_sampling(m.view, items, keep, 7);
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, keep, 7, ram_storage()));
   expect_valid_labels(m.view, labels, keep.total_clusters);
   // Labels never cross components.
   std::vector<int64_t> component_of_label(keep.total_clusters, -1);
@@ -180,11 +180,11 @@ TEST(ClusteringSampling, BudgetSplitsOverComponentsInProportionToArea) {
     EXPECT_EQ(component_of_label[l], int64_t(keep.component_of_vertex[v])) << "label " << l << " spans components";
   }
 
-  ComponentBudget drop = plan_component_budget(m.view, items, 500, SmallComponents::Drop);
+  ComponentBudget drop = plan_component_budget(m.view, items, 500, SmallComponents::Drop, ram_storage());
   EXPECT_EQ(drop.total_clusters, 500u) << drop.note;
   EXPECT_EQ(drop.components_dropped, 3u);
   EXPECT_EQ(drop.small_components_kept, 0u);
-  std::vector<int32_t> dropped = initial_sampling(m.view, items, drop, 7);
+  std::vector<int32_t> dropped = test::to_vector(initial_sampling(m.view, items, drop, 7, ram_storage()));
   for (uint32_t v = 0; v < m.view.vertex_count(); ++v) {
     uint32_t c = drop.component_of_vertex[v];
     if (drop.clusters_per_component[c] == 0) {
@@ -198,10 +198,10 @@ TEST(ClusteringSampling, BudgetSplitsOverComponentsInProportionToArea) {
 TEST(ClusteringSampling, MoreClustersThanVerticesIsCappedWithANote) {
   Stored m(make_grid(5, 5));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 40, SmallComponents::Keep);
+  ComponentBudget b = plan_component_budget(m.view, items, 40, SmallComponents::Keep, ram_storage());
   EXPECT_EQ(b.total_clusters, 25u);
   EXPECT_FALSE(b.note.empty());
-  std::vector<int32_t> labels = initial_sampling(m.view, items, b, 3);
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 3, ram_storage()));
   std::vector<uint32_t> size = expect_valid_labels(m.view, labels, b.total_clusters);
   for (uint32_t s : size) EXPECT_EQ(s, 1u);
 }
@@ -211,9 +211,9 @@ TEST(ClusteringSampling, IsolatedVerticesStayUnlabelled) {
   soup.positions.insert(soup.positions.end(), {5.0f, 5.0f, 5.0f, 6.0f, 6.0f, 6.0f});  // two unreferenced
   Stored m(soup);
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 12, SmallComponents::Keep);
+  ComponentBudget b = plan_component_budget(m.view, items, 12, SmallComponents::Keep, ram_storage());
   EXPECT_EQ(b.total_clusters, 12u);
-  std::vector<int32_t> labels = initial_sampling(m.view, items, b, 3);
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 3, ram_storage()));
   expect_valid_labels(m.view, labels, b.total_clusters);  // checks the isolated ones are −1
   uint32_t unlabelled = uint32_t(std::count(labels.begin(), labels.end(), -1));
   EXPECT_EQ(unlabelled, 2u);
@@ -222,9 +222,10 @@ TEST(ClusteringSampling, IsolatedVerticesStayUnlabelled) {
 TEST(ClusteringSampling, SameSeedSameLabelsDifferentSeedDifferentLabels) {
   Stored m(make_icosphere(3));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 64, SmallComponents::Keep);
-  EXPECT_EQ(initial_sampling(m.view, items, b, 42), initial_sampling(m.view, items, b, 42));
-  EXPECT_NE(initial_sampling(m.view, items, b, 42), initial_sampling(m.view, items, b, 43));
+  ComponentBudget b = plan_component_budget(m.view, items, 64, SmallComponents::Keep, ram_storage());
+  auto sample = [&](uint64_t seed) { return test::to_vector(initial_sampling(m.view, items, b, seed, ram_storage())); };
+  EXPECT_EQ(sample(42), sample(42));
+  EXPECT_NE(sample(42), sample(43));
 }
 
 // --- Algorithm 1, cleaning, constrained pass ----------------------------------------------------
@@ -251,9 +252,9 @@ TEST(ClusteringMinimize, EnergyNeverIncreasesWithinEachPass) {
       SCOPED_TRACE(c.name + " seed " + std::to_string(seed));
       Stored m(c.mesh);
       ItemData items = compute_item_data(m.view);
-      ComponentBudget b = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep);
+      ComponentBudget b = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep, ram_storage());
       const uint32_t K = b.total_clusters;
-      std::vector<int32_t> labels = initial_sampling(m.view, items, b, seed);
+      std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, seed, ram_storage()));
       const double initial = clustering_energy(items, accumulate_clusters(items, labels, K));
 
       ClusteringReport report = minimize_clustering(m.view, items, labels, K);
@@ -279,11 +280,11 @@ TEST(ClusteringMinimize, PassByPassEnergyMonotoneWithAndWithoutSkip) {
   // The same passes driven one by one, with the §VI-A modified-clusters skip on and off.
   Stored m(make_icosphere(4));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 200, SmallComponents::Keep);
+  ComponentBudget b = plan_component_budget(m.view, items, 200, SmallComponents::Keep, ram_storage());
   const uint32_t K = b.total_clusters;
   for (bool skip : {true, false}) {
     SCOPED_TRACE(skip ? "skip unchanged" : "test every edge");
-    std::vector<int32_t> labels = initial_sampling(m.view, items, b, 5);
+    std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 5, ram_storage()));
     ClusterState state = make_cluster_state(items, labels, K, Metric::I);
     ClusteringReport free_pass;
     LoopOptions pass;
@@ -311,9 +312,9 @@ TEST(ClusteringMinimize, EveryClusterConnectedAfterConstrainedPass) {
       SCOPED_TRACE(c.name + " seed " + std::to_string(seed));
       Stored m(c.mesh);
       ItemData items = compute_item_data(m.view);
-      ComponentBudget b = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep);
+      ComponentBudget b = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep, ram_storage());
       const uint32_t K = b.total_clusters;
-      std::vector<int32_t> labels = initial_sampling(m.view, items, b, seed);
+      std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, seed, ram_storage()));
       minimize_clustering(m.view, items, labels, K);
       expect_valid_labels(m.view, labels, K);
       EXPECT_TRUE(clusters_connected(m.view, labels, K));
@@ -327,9 +328,9 @@ TEST(ClusteringMinimize, InactiveClustersAreNotTested) {
   // active, an unconverged clustering is left as it is; if all are, it moves.
   Stored m(make_icosphere(3));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 40, SmallComponents::Keep);
+  ComponentBudget b = plan_component_budget(m.view, items, 40, SmallComponents::Keep, ram_storage());
   const uint32_t K = b.total_clusters;
-  const std::vector<int32_t> initial = initial_sampling(m.view, items, b, 8);
+  const std::vector<int32_t> initial = test::to_vector(initial_sampling(m.view, items, b, 8, ram_storage()));
   std::vector<int32_t> labels = initial;
   ClusterState state = make_cluster_state(items, labels, K, Metric::I);
   ClusteringReport none;
@@ -351,8 +352,8 @@ TEST(ClusteringMinimize, ConvergedClusteringIsAFixedPoint) {
   // pass moves nothing.
   Stored m(make_torus(50, 20));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 80, SmallComponents::Keep);
-  std::vector<int32_t> labels = initial_sampling(m.view, items, b, 9);
+  ComponentBudget b = plan_component_budget(m.view, items, 80, SmallComponents::Keep, ram_storage());
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 9, ram_storage()));
   minimize_clustering(m.view, items, labels, b.total_clusters);
   std::vector<int32_t> before = labels;
   ClusterState state = make_cluster_state(items, labels, b.total_clusters, Metric::I);
@@ -371,8 +372,8 @@ TEST(ClusteringMinimize, ClustersOnAFlatGridAreCompactAndBalanced) {
   // On a uniform grid the converged clusters have similar areas (CVD: near-equal cells).
   Stored m(make_grid(60, 60));
   ItemData items = compute_item_data(m.view);
-  ComponentBudget b = plan_component_budget(m.view, items, 36, SmallComponents::Keep);
-  std::vector<int32_t> labels = initial_sampling(m.view, items, b, 1);
+  ComponentBudget b = plan_component_budget(m.view, items, 36, SmallComponents::Keep, ram_storage());
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 1, ram_storage()));
   minimize_clustering(m.view, items, labels, b.total_clusters);
   std::vector<ClusterSums> sums = accumulate_clusters(items, labels, b.total_clusters);
   double lo = 1e300, hi = 0;

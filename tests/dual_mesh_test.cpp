@@ -254,8 +254,8 @@ TEST(DualMesh, ConvergedClusteringOfASphereGivesAClosedManifold) {
   MeshView view = store.view();
   ItemData items = compute_item_data(view);
   const uint32_t K = 120;
-  ComponentBudget b = plan_component_budget(view, items, K, SmallComponents::Keep);
-  std::vector<int32_t> labels = initial_sampling(view, items, b, 17);
+  ComponentBudget b = plan_component_budget(view, items, K, SmallComponents::Keep, ram_storage());
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(view, items, b, 17, ram_storage()));
   minimize_clustering(view, items, labels, K);
   std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
   std::vector<double> z(3 * K);

@@ -47,9 +47,9 @@ struct Sampled {
   std::vector<int32_t> initial;
   Sampled(const MeshBuffers& mesh, uint32_t clusters, uint64_t seed) : m(mesh), items(compute_item_data(m.view)) {
     items.quadric = vertex_quadrics(m.view, items.origin);
-    ComponentBudget b = plan_component_budget(m.view, items, clusters, SmallComponents::Keep);
+    ComponentBudget b = plan_component_budget(m.view, items, clusters, SmallComponents::Keep, ram_storage());
     K = b.total_clusters;
-    initial = initial_sampling(m.view, items, b, seed);
+    initial = test::to_vector(initial_sampling(m.view, items, b, seed, ram_storage()));
   }
   double energy(std::span<const int32_t> labels, Metric metric) const {
     ClusterState s = make_cluster_state(items, labels, K, metric);

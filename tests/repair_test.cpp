@@ -28,8 +28,8 @@ size_t global_defects(const MeshView& view, const std::vector<int32_t>& labels, 
 // Labels of a random clustering: region growing from random seeds (many small, twisted
 // clusters, so the dual has defects), without any minimisation.
 std::vector<int32_t> rough_clustering(const MeshView& view, const ItemData& items, uint32_t K, uint64_t seed) {
-  ComponentBudget budget = plan_component_budget(view, items, K, SmallComponents::Keep);
-  return initial_sampling(view, items, budget, seed);
+  ComponentBudget budget = plan_component_budget(view, items, K, SmallComponents::Keep, ram_storage());
+  return test::to_vector(initial_sampling(view, items, budget, seed, ram_storage()));
 }
 
 // Returns how many of the starts had a defect.
@@ -96,16 +96,18 @@ TEST(RepairLoop, CleanClusteringNeedsNoRound) {
 }
 
 TEST(RepairDragon, SlowSeedsConvergeWithinTheRoundBudget) {
-  // Dragon, N = 20000, metric I: these seeds once needed 13 and 19 repair rounds, and with the
-  // former cap of 12 the last-resort cleanup deleted faces and vertices (holes, fewer than N).
+  // Dragon, N = 20000, metric I: seed 1 needs 13 repair rounds (seeds 1-18 need 6-13 with the
+  // chunk-wise sampling and the K-sized repair). With the former cap of 12 the last-resort
+  // cleanup deleted faces and vertices (holes, fewer than N).
   const auto path = test::shared_data_path("stanford_dragon_vrip.ply");
   if (!path) GTEST_SKIP() << "../shared/data absent";
   MeshStore store = MeshStore::build(read_mesh(*path).view());
-  for (uint64_t seed : {3, 10}) {
+  for (uint64_t seed : {1}) {
     RemeshOptions o;
     o.vertices = 20000;
     o.seed = seed;
     const RemeshResult r = remesh(store.view(), o);
+    EXPECT_GT(r.repair_rounds_used, 12u) << "seed " << seed;
     EXPECT_LE(r.repair_rounds_used, o.repair_rounds) << "seed " << seed;
     EXPECT_EQ(r.defect_faces_removed, 0u) << "seed " << seed;
     EXPECT_EQ(r.defect_vertices, 0u) << "seed " << seed;

@@ -4,6 +4,9 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
+
+#include "core/large_array.h"
 
 #include "core/shapes.h"
 #include "streaming/mesh_io.h"
@@ -15,6 +18,11 @@ namespace streamcvd::test {
 std::string data_path(const std::string& name);
 /// Path of a mesh under ../shared/data, or nullopt when that folder is absent.
 std::optional<std::string> shared_data_path(const std::string& name);
+/// A copy of a LargeArray as a vector (for EXPECT_EQ and the APIs that take vectors).
+template <typename T>
+std::vector<T> to_vector(const LargeArray<T>& a) {
+  return std::vector<T>(a.begin(), a.end());
+}
 /// A fresh empty directory under the system temp dir, unique per call.
 std::filesystem::path temp_dir(const std::string& tag);
 

@@ -453,47 +453,4 @@ MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<u
   return report;
 }
 
-std::vector<uint8_t> remesh_movable_vertices(std::span<const int32_t> labels, const ComponentBudget& budget,
-                                             std::span<const int32_t> cluster_of_output_vertex) {
-  int32_t K = 0;
-  for (int32_t c : cluster_of_output_vertex) K = std::max(K, c + 1);
-  std::vector<uint8_t> verbatim(size_t(K), 0);
-  for (size_t v = 0; v < labels.size() && v < budget.component_of_vertex.size(); ++v) {
-    const uint32_t comp = budget.component_of_vertex[v];
-    if (labels[v] < 0 || labels[v] >= K || comp >= budget.clusters_per_component.size()) continue;
-    if (budget.clusters_per_component[comp] >= budget.vertices_per_component[comp]) verbatim[size_t(labels[v])] = 1;
-  }
-  std::vector<uint8_t> movable(cluster_of_output_vertex.size(), 0);
-  for (size_t o = 0; o < movable.size(); ++o) {
-    const int32_t c = cluster_of_output_vertex[o];
-    movable[o] = c >= 0 && !verbatim[size_t(c)];
-  }
-  return movable;
-}
-
-std::vector<uint32_t> cluster_anchor_faces(const MeshView& surface, std::span<const int32_t> labels,
-                                           std::span<const int32_t> cluster_of_output_vertex,
-                                           std::span<const float> output_positions) {
-  const size_t V_out = cluster_of_output_vertex.size();
-  int32_t K = 0;
-  for (int32_t c : cluster_of_output_vertex) K = std::max(K, c + 1);
-  std::vector<uint32_t> output_of_cluster(size_t(K), UINT32_MAX);
-  for (size_t o = 0; o < V_out; ++o)
-    if (cluster_of_output_vertex[o] >= 0) output_of_cluster[size_t(cluster_of_output_vertex[o])] = uint32_t(o);
-  std::vector<uint32_t> nearest(V_out, UINT32_MAX);
-  std::vector<double> best(V_out, INFINITY);
-  for (uint32_t v = 0; v < surface.vertex_count() && v < labels.size(); ++v) {
-    const int32_t c = labels[v];
-    if (c < 0 || c >= K || surface.faces_of(v).empty()) continue;
-    const uint32_t o = output_of_cluster[size_t(c)];
-    if (o == UINT32_MAX) continue;
-    const Vec3 d = sub(point(surface.positions, v), point(output_positions, o));
-    if (dot(d, d) < best[o]) best[o] = dot(d, d), nearest[o] = v;
-  }
-  std::vector<uint32_t> anchor(V_out, UINT32_MAX);
-  for (size_t o = 0; o < V_out; ++o)
-    if (nearest[o] != UINT32_MAX) anchor[o] = surface.faces_of(nearest[o])[0];
-  return anchor;
-}
-
 }  // namespace streamcvd

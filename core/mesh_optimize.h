@@ -57,19 +57,6 @@ MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<u
                                          std::span<const uint8_t> movable, const MeshView* surface,
                                          std::span<uint32_t> surface_face, const MeshOptimizeOptions& options = {});
 
-/// For each output vertex of a clustering's dual, an input face near it to start the
-/// projection walk from: a face of the input vertex of its cluster closest to it (UINT32_MAX for
-/// vertices without a cluster, i.e. cluster_of_output_vertex < 0). O(V_in + F_out).
-std::vector<uint32_t> cluster_anchor_faces(const MeshView& surface, std::span<const int32_t> labels,
-                                           std::span<const int32_t> cluster_of_output_vertex,
-                                           std::span<const float> output_positions);
-
-/// Output vertices of a clustering's dual that a quality pass may move: cluster vertices
-/// outside the small components copied as they are (one cluster per input vertex: their
-/// triangles are input geometry). Strip vertices (cluster −1) stay. O(V_in + V_out).
-std::vector<uint8_t> remesh_movable_vertices(std::span<const int32_t> labels, const ComponentBudget& budget,
-                                             std::span<const int32_t> cluster_of_output_vertex);
-
 /// Average triangle quality Q (1 = equilateral, 0 = degenerate) of a triangle soup. O(F).
 double average_triangle_quality(std::span<const float> positions, std::span<const uint32_t> triangles);
 

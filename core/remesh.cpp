@@ -3,6 +3,7 @@
 #include "core/bvh.h"
 #include "core/curvature.h"
 #include "core/metric_field.h"
+#include "core/placement.h"
 #include "core/errors.h"
 #include "core/flat_faces.h"
 #include "core/lloyd.h"
@@ -27,40 +28,6 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 // CPU seconds used by the whole process so far (all threads).
 double process_cpu_seconds() {
   return double(std::clock()) / CLOCKS_PER_SEC;
-}
-
-// Moves each cluster's representative to the closest point of the input surface among the
-// triangles around the cluster's vertices: centroids of curved clusters lie off the surface
-// (inside convex parts), which costs approximation accuracy for nothing.
-void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels, std::vector<double>& z) {
-  const size_t K = z.size() / 3;
-  std::vector<double> best_d2(K, std::numeric_limits<double>::infinity());
-  std::vector<double> best(z.size());
-  const float* P = mesh.positions.data();
-  const uint32_t* T = mesh.triangles.data();
-  auto corner = [&](uint32_t i) { return std::array<double, 3>{P[3 * size_t(i)], P[3 * size_t(i) + 1], P[3 * size_t(i) + 2]}; };
-  for (uint32_t v = 0; v < mesh.vertex_count(); ++v) {
-    const int32_t c = labels[v];
-    if (c < 0) continue;
-    const std::array<double, 3> p = {z[3 * size_t(c)], z[3 * size_t(c) + 1], z[3 * size_t(c) + 2]};
-    for (uint32_t f : mesh.faces_of(v)) {
-      // Each face is tested once per cluster: by its smallest corner of that cluster.
-      uint32_t first = UINT32_MAX;
-      for (int k = 0; k < 3; ++k)
-        if (labels[T[3 * size_t(f) + k]] == c) first = std::min(first, T[3 * size_t(f) + k]);
-      if (first != v) continue;
-      std::array<double, 3> q = closest_point_on_triangle(p, corner(T[3 * size_t(f)]), corner(T[3 * size_t(f) + 1]),
-                                                          corner(T[3 * size_t(f) + 2]));
-      double d2 = (q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) + (q[2] - p[2]) * (q[2] - p[2]);
-      if (d2 < best_d2[c]) {
-        best_d2[c] = d2;
-        for (int k = 0; k < 3; ++k) best[3 * size_t(c) + k] = q[k];
-      }
-    }
-  }
-  for (size_t c = 0; c < K; ++c)
-    if (best_d2[c] < std::numeric_limits<double>::infinity())
-      for (int k = 0; k < 3; ++k) z[3 * c + k] = best[3 * c + k];
 }
 
 void place_output_vertices(DualMesh& dual, std::span<const double> z) {
@@ -150,6 +117,18 @@ int64_t euler_characteristic(const TriangleSoupView& soup) {
   return v - e + int64_t(soup.face_count());
 }
 
+// The V-sized labels for the caller: in RAM (the job's work space ends with the job), or none.
+void hand_over_vertex_labels(bool keep, LargeArray<int32_t>& labels, RemeshResult& result) {
+  LargeArray<uint32_t>& components = result.budget.component_of_vertex;
+  if (!keep) {
+    labels.reset();
+    components.reset();
+    return;
+  }
+  result.cluster_of_vertex = &labels.storage() == &ram_storage() ? std::move(labels) : large_array_of(labels.span());
+  if (&components.storage() != &ram_storage()) components = large_array_of(components.span());
+}
+
 }  // namespace
 
 RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArrayStorage& storage) {
@@ -191,12 +170,11 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   result.seconds.items = seconds_since(t);
 
   t = std::chrono::steady_clock::now();
-  // TODO(pipeline): the job's work space instead of RAM (the labels stay in it until the end).
-  result.budget = plan_component_budget(mesh, items, options.vertices, options.small_components, ram_storage());
+  result.budget = plan_component_budget(mesh, items, options.vertices, options.small_components, storage);
   const uint32_t K = result.budget.total_clusters;
   result.clusters = K;
   LargeArray<int32_t> labels = initial_sampling(mesh, is_anisotropic(metric) ? sampling_items : items, result.budget,
-                                                options.seed, ram_storage());
+                                                options.seed, storage);
   sampling_items = ItemData{};
   result.seconds.sampling = seconds_since(t);
 
@@ -209,11 +187,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   result.seconds.clustering_cpu = process_cpu_seconds() - cpu0;
 
   // Compensating merges/splits of the repair stay in components with many clusters.
-  std::vector<uint8_t> adjustable(K, 0);
-  for (uint32_t v = 0; v < mesh.vertex_count(); ++v) {
-    uint32_t c = result.budget.component_of_vertex[v];
-    if (labels[v] >= 0 && c != UINT32_MAX && result.budget.clusters_per_component[c] >= 64) adjustable[labels[v]] = 1;
-  }
+  const std::vector<uint8_t> adjustable = clusters_in_large_components(labels, result.budget, K, 64);
   const BoundaryLoops boundary_loops = find_boundary_loops(mesh);
   DualMeshOptions dual_options;
   dual_options.boundary_strips = options.boundary_strips;
@@ -227,7 +201,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   repair_options.clustering = options.clustering;
   repair_options.relax = !lloyd;  // a Lloyd run's report stays pure Lloyd
   DefectRepairResult repair =
-      repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options, result.clustering, ram_storage());
+      repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options, result.clustering, storage);
   result.repair_rounds_used = repair.rounds;
   result.repaired_clusters = repair.repaired_clusters;
   result.repair_splits = repair.splits;
@@ -298,22 +272,14 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   // Topology check for closed inputs: the output must keep the Euler characteristic (genus per
   // component) and stay closed. A change is reported, never silent.
   {
-    bool closed_input = true;
-    uint64_t referenced = 0;
-    for (uint32_t v = 0; v < mesh.vertex_count(); ++v) {
-      closed_input &= (mesh.vertex_flags[v] & (kVertexBoundary | kVertexNonManifold)) == 0;
-      referenced += (mesh.vertex_flags[v] & kVertexIsolated) == 0;
-    }
-    result.input_euler_characteristic =
-        int64_t(referenced) - int64_t(mesh.vertex_vertex.size() / 2) + int64_t(mesh.face_count());
+    const InputClosure input = input_closure(mesh);
+    result.input_euler_characteristic = input.euler_characteristic;
     result.output_euler_characteristic = euler_characteristic(dual.mesh.view());
-    result.topology_changed = closed_input && (result.output_euler_characteristic != result.input_euler_characteristic ||
+    result.topology_changed = input.closed && (result.output_euler_characteristic != result.input_euler_characteristic ||
                                                result.defect_faces_removed > 0);
   }
   {  // Per component: one output piece each, genus kept, no new boundary loops.
-    std::vector<uint32_t> component_of_cluster(K, UINT32_MAX);
-    for (uint32_t v = 0; v < mesh.vertex_count(); ++v)
-      if (labels[v] >= 0) component_of_cluster[labels[v]] = result.budget.component_of_vertex[v];
+    const std::vector<uint32_t> component_of_cluster = component_of_each_cluster(labels, result.budget, K);
     const std::vector<ComponentShape> shapes = input_component_shapes(
         mesh, result.budget.component_of_vertex, uint32_t(result.budget.clusters_per_component.size()), boundary_loops);
     result.components = check_component_topology(shapes, dual.mesh.view(), dual.cluster_of_output_vertex, component_of_cluster);
@@ -323,7 +289,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   result.holes_closed = dual.holes_closed;
   result.clusters_connected = clusters_connected(mesh, labels, K);
   result.mesh = std::move(dual.mesh);
-  result.cluster_of_vertex.assign(labels.begin(), labels.end());
+  hand_over_vertex_labels(options.keep_vertex_labels, labels, result);
   return result;
 }
 

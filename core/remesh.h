@@ -40,6 +40,10 @@ struct RemeshOptions {
   /// triangles and tangential relaxation of vertices off features, re-projected onto the input.
   bool optimize_quality = true;
   MeshOptimizeOptions optimize;
+  /// Return the V-sized labels (RemeshResult::cluster_of_vertex, budget.component_of_vertex),
+  /// copied into RAM when the job's storage is a work space; a job that only writes the output
+  /// mesh turns this off, so nothing V-sized outlives the clustering.
+  bool keep_vertex_labels = true;
 };
 
 struct StageTimes {
@@ -49,7 +53,7 @@ struct StageTimes {
 
 struct RemeshResult {
   MeshBuffers mesh;                  ///< output vertices (cluster representatives) and triangles
-  std::vector<int32_t> cluster_of_vertex;  ///< final label of each input vertex
+  LargeArray<int32_t> cluster_of_vertex;  ///< final label of each input vertex (in RAM; empty unless keep_vertex_labels)
   uint32_t clusters = 0;             ///< clusters used (budget after components)
   ComponentBudget budget;
   ClusteringReport clustering;

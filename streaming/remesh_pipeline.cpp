@@ -79,6 +79,7 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   result.work_ram_bytes = work_ram_budget(options.memory_limit, ram_store);
   WorkSpace space(work, result.work_ram_bytes);
   remesh_options.clustering.storage = &space;
+  remesh_options.keep_vertex_labels = false;  // only the output mesh leaves the job
   result.remesh = remesh(view, remesh_options, space);
   result.work_file_peak_bytes = space.peak_file_bytes();
   if (result.remesh.mesh.face_count() == 0)

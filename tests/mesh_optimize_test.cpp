@@ -2,6 +2,7 @@
 // never a duplicate edge or a fold, fixed vertices stay, moved vertices land on the surface,
 // and on remeshed closed shapes the topology (closed manifold, genus) is kept while Qav rises.
 #include "core/mesh_optimize.h"
+#include "core/placement.h"
 
 #include <gtest/gtest.h>
 

@@ -27,14 +27,6 @@
 
 namespace streamcvd {
 
-/// Vertex ids [begin, end).
-struct VertexRange {
-  uint32_t begin = 0;
-  uint32_t end = 0;
-  uint32_t size() const { return end - begin; }
-  bool contains(uint32_t v) const { return v - begin < end - begin; }
-};
-
 /// Label of a vertex that takes no part in the graph (never added nor joined).
 inline constexpr uint32_t kNoComponent = std::numeric_limits<uint32_t>::max();
 

@@ -46,6 +46,25 @@ struct TriangleSoupView {
 
 /// Full indexed mesh with adjacency, as laid out by the compact store.
 /// CSR arrays: the neighbours of vertex v are adj[offsets[v] .. offsets[v+1]).
+/// Vertex ids [begin, end).
+struct VertexRange {
+  uint32_t begin = 0;
+  uint32_t end = 0;
+  uint32_t size() const { return end - begin; }
+  bool contains(uint32_t v) const { return v - begin < end - begin; }
+};
+
+/// Residency hooks of a job whose arrays are mapped from files (streaming/chunk_scheduler.h): a
+/// stage says which vertex range it is about to work on (the job reads its chunks' pages ahead)
+/// and when it is done with it (the job may let them go once more than its resident budget is
+/// held). Advice only: a missing call costs page faults, never a wrong result. Thread-safe.
+class RangeResidency {
+ public:
+  virtual ~RangeResidency() = default;
+  virtual void enter(const char* stage, VertexRange range) = 0;
+  virtual void leave(const char* stage, VertexRange range) = 0;
+};
+
 struct MeshView {
   std::span<const float> positions;                 ///< 3·V floats (Hilbert vertex order)
   std::span<const uint32_t> triangles;              ///< 3·F indices, faces sorted by owner vertex
@@ -56,6 +75,7 @@ struct MeshView {
   std::span<const uint8_t> vertex_flags;            ///< V, VertexFlag bits
   std::span<const Chunk> chunks;                    ///< contiguous vertex ranges covering [0, V)
   std::span<const uint32_t> chunk_neighbours;       ///< neighbour chunk ids (see Chunk::neighbour_begin)
+  RangeResidency* residency = nullptr;              ///< the job's residency hooks; null: all resident
 
   uint32_t vertex_count() const { return static_cast<uint32_t>(positions.size() / 3); }
   uint64_t face_count() const { return triangles.size() / 3; }
@@ -66,6 +86,25 @@ struct MeshView {
   std::span<const uint32_t> faces_of(uint32_t v) const {
     return vertex_face.subspan(vertex_face_offsets[v], vertex_face_offsets[v + 1] - vertex_face_offsets[v]);
   }
+};
+
+/// Tells the view's residency hooks (if any) that `range` is worked on during its lifetime.
+class RangeVisit {
+ public:
+  RangeVisit(const MeshView& mesh, const char* stage, VertexRange range)
+      : hooks_(mesh.residency), stage_(stage), range_(range) {
+    if (hooks_) hooks_->enter(stage_, range_);
+  }
+  ~RangeVisit() {
+    if (hooks_) hooks_->leave(stage_, range_);
+  }
+  RangeVisit(const RangeVisit&) = delete;
+  RangeVisit& operator=(const RangeVisit&) = delete;
+
+ private:
+  RangeResidency* hooks_;
+  const char* stage_;
+  VertexRange range_;
 };
 
 }  // namespace streamcvd

@@ -34,11 +34,17 @@ void atomic_min(uint64_t& slot, uint64_t key) {
   }
 }
 
-// Runs body(v) for every input vertex, in parallel over index ranges.
+// Runs body(v) for every input vertex, in parallel over index ranges (each a visit of `mesh`'s
+// range when the pass reads the mesh).
 template <typename Body>
-void for_each_vertex(uint32_t V, const Body& body) {
+void for_each_vertex(uint32_t V, const MeshView* mesh, const Body& body) {
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, V, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
-    for (uint32_t v = r.begin(); v != r.end(); ++v) body(v);
+    if (mesh) {
+      const RangeVisit visit(*mesh, "placement", {r.begin(), r.end()});
+      for (uint32_t v = r.begin(); v != r.end(); ++v) body(v);
+    } else {
+      for (uint32_t v = r.begin(); v != r.end(); ++v) body(v);
+    }
   });
 }
 
@@ -71,7 +77,7 @@ void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels
     return closest_point_on_triangle(site(c), corner(P, T[3 * size_t(f)]), corner(P, T[3 * size_t(f) + 1]),
                                      corner(P, T[3 * size_t(f) + 2]));
   };
-  for_each_vertex(mesh.vertex_count(), [&](uint32_t v) {
+  for_each_vertex(mesh.vertex_count(), &mesh, [&](uint32_t v) {
     const int32_t c = labels[v];
     if (c < 0) return;
     for (uint32_t f : mesh.faces_of(v)) {
@@ -102,7 +108,7 @@ std::vector<uint32_t> cluster_anchor_faces(const MeshView& surface, std::span<co
     if (cluster_of_output_vertex[o] >= 0) output_of_cluster[size_t(cluster_of_output_vertex[o])] = uint32_t(o);
   std::vector<uint64_t> nearest(V_out, kNoCandidate);  // (squared distance, input vertex)
   const uint32_t V = uint32_t(std::min<size_t>(surface.vertex_count(), labels.size()));
-  for_each_vertex(V, [&](uint32_t v) {
+  for_each_vertex(V, &surface, [&](uint32_t v) {
     const int32_t c = labels[v];
     if (c < 0 || uint32_t(c) >= K || surface.faces_of(v).empty()) return;
     const uint32_t o = output_of_cluster[size_t(c)];
@@ -121,7 +127,7 @@ std::vector<uint8_t> remesh_movable_vertices(std::span<const int32_t> labels, co
   const uint32_t K = cluster_count_of(cluster_of_output_vertex);
   std::vector<uint8_t> verbatim(K, 0);
   const uint32_t V = uint32_t(std::min<size_t>(labels.size(), budget.component_of_vertex.size()));
-  for_each_vertex(V, [&](uint32_t v) {
+  for_each_vertex(V, nullptr, [&](uint32_t v) {
     const uint32_t comp = budget.component_of_vertex[v];
     if (labels[v] < 0 || uint32_t(labels[v]) >= K || comp >= budget.clusters_per_component.size()) return;
     if (budget.clusters_per_component[comp] >= budget.vertices_per_component[comp]) mark(verbatim[size_t(labels[v])]);
@@ -137,7 +143,7 @@ std::vector<uint8_t> remesh_movable_vertices(std::span<const int32_t> labels, co
 std::vector<uint8_t> clusters_in_large_components(std::span<const int32_t> labels, const ComponentBudget& budget,
                                                   uint32_t cluster_count, uint32_t min_clusters) {
   std::vector<uint8_t> large(cluster_count, 0);
-  for_each_vertex(uint32_t(labels.size()), [&](uint32_t v) {
+  for_each_vertex(uint32_t(labels.size()), nullptr, [&](uint32_t v) {
     const uint32_t comp = budget.component_of_vertex[v];
     if (labels[v] >= 0 && comp != UINT32_MAX && budget.clusters_per_component[comp] >= min_clusters)
       mark(large[size_t(labels[v])]);
@@ -149,7 +155,7 @@ std::vector<uint32_t> component_of_each_cluster(std::span<const int32_t> labels,
                                                 uint32_t cluster_count) {
   std::vector<uint32_t> component(cluster_count, UINT32_MAX);
   // A cluster lies in one component: every writer of a slot writes the same value.
-  for_each_vertex(uint32_t(labels.size()), [&](uint32_t v) {
+  for_each_vertex(uint32_t(labels.size()), nullptr, [&](uint32_t v) {
     if (labels[v] >= 0)
       std::atomic_ref<uint32_t>(component[size_t(labels[v])])
           .store(budget.component_of_vertex[v], std::memory_order_relaxed);

@@ -33,11 +33,14 @@ constexpr uint32_t kVerbatimVertices = 16;
 constexpr double kSmallComponentShare = 0.2;
 constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
 
-// fn(i) for every range index, as TBB tasks of one range each.
+// fn(i) for every range index, as TBB tasks of one range each, each a visit of its range.
 template <class Fn>
-void for_each_range(size_t count, const Fn& fn) {
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i) fn(i);
+void for_each_range(const MeshView& mesh, std::span<const VertexRange> ranges, const Fn& fn) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      const RangeVisit visit(mesh, "sampling", ranges[i]);
+      fn(i);
+    }
   });
 }
 
@@ -326,7 +329,7 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
   std::vector<RangePieces> pieces(ranges.size());
   {
     tbb::enumerable_thread_specific<RangePieceBuilder> builders;
-    for_each_range(ranges.size(), [&](size_t i) {
+    for_each_range(mesh, ranges, [&](size_t i) {
       const VertexRange r = ranges[i];
       RangePieceBuilder& builder = builders.local();
       builder.begin(r);
@@ -343,7 +346,7 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
     std::vector<Part> parts;
   };
   tbb::enumerable_thread_specific<Scratch> scratch;
-  for_each_range(ranges.size(), [&](size_t i) {
+  for_each_range(mesh, ranges, [&](size_t i) {
     const VertexRange r = ranges[i];
     for (uint32_t v = r.begin; v < r.end; ++v) {
       uint32_t& c = b.component_of_vertex[v];
@@ -444,7 +447,7 @@ LargeArray<int32_t> initial_sampling(const MeshView& mesh, const ItemData& items
   // Parts and their weights under these items (the sampling items may differ from the budget's).
   std::vector<std::vector<Part>> parts(ranges.size());
   tbb::enumerable_thread_specific<SamplingScratch> scratch;
-  for_each_range(ranges.size(), [&](size_t i) {
+  for_each_range(mesh, ranges, [&](size_t i) {
     SamplingScratch& s = scratch.local();
     collect_parts(ranges[i], [&](uint32_t v) { return component_of[v]; }, weight, mesh.vertex_flags, s.index, s.parts);
     parts[i] = s.parts;
@@ -504,7 +507,7 @@ LargeArray<int32_t> initial_sampling(const MeshView& mesh, const ItemData& items
     throw std::invalid_argument("initial_sampling: more clusters than int32 labels");
 
   LargeArray<int32_t> label(V, storage, "labels");
-  for_each_range(ranges.size(), [&](size_t i) {
+  for_each_range(mesh, ranges, [&](size_t i) {
     sample_range(mesh, weight, component_of, ranges[i], seed + i * kRangeSeedStep, parts[i], target,
                  int32_t(first_label[i]), label.span(), scratch.local());
   });
@@ -561,7 +564,7 @@ void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels) {
 
   // Inside every range: the free vertices next to a labelled one of the range are the first
   // layer; those left free by the BFS that touch another range are the first round's candidates.
-  for_each_range(R, [&](size_t i) {
+  for_each_range(mesh, ranges, [&](size_t i) {
     const VertexRange r = ranges[i];
     Scratch& s = scratch.local();
     s.layer.clear();
@@ -589,7 +592,7 @@ void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels) {
   for (;;) {
     // Across the frontiers, reading only (nobody writes in this step): a candidate takes the
     // label of its lowest-id labelled neighbour in another range.
-    for_each_range(R, [&](size_t i) {
+    for_each_range(mesh, ranges, [&](size_t i) {
       const VertexRange r = ranges[i];
       offers[i].clear();
       for (uint32_t v : candidates[i]) {
@@ -606,7 +609,7 @@ void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels) {
     if (!any) break;
     // Each range takes its offers and spreads them inside; the neighbours in other ranges of
     // what it labelled are the next round's candidates.
-    for_each_range(R, [&](size_t i) {
+    for_each_range(mesh, ranges, [&](size_t i) {
       const VertexRange r = ranges[i];
       Scratch& s = scratch.local();
       outbox[i].clear();
@@ -619,7 +622,7 @@ void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels) {
     for (std::vector<uint32_t>& c : candidates) c.clear();
     for (const std::vector<uint32_t>& out : outbox)
       for (uint32_t n : out) candidates[range_of(n)].push_back(n);
-    for_each_range(R, [&](size_t i) {
+    for_each_range(mesh, ranges, [&](size_t i) {
       std::vector<uint32_t>& c = candidates[i];
       std::sort(c.begin(), c.end());
       c.erase(std::unique(c.begin(), c.end()), c.end());

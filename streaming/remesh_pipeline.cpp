@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <optional>
 
 #include "core/errors.h"
 #include "core/subdivide.h"
@@ -30,6 +31,14 @@ std::string default_work_directory() {
 uint64_t work_ram_budget(uint64_t limit, uint64_t ram_store_bytes) {
   if (limit == 0) return ~uint64_t(0);
   return limit > ram_store_bytes ? (limit - ram_store_bytes) / 2 : 0;
+}
+
+// Bytes of left chunks (store slices and their per-vertex work arrays) the scheduler keeps
+// before releasing: a quarter of the limit (the other page-cache quarter serves the K-sized
+// state's neighbours and read-ahead). ~0 = no limit.
+uint64_t resident_budget(uint64_t limit) {
+  if (limit == 0) return ~uint64_t(0);
+  return std::max<uint64_t>(limit / 4, 64ull << 20);
 }
 }  // namespace
 
@@ -78,10 +87,19 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   const uint64_t ram_store = result.subdivision_levels > 0 ? subdivided.ram_bytes() : store.ram_bytes();
   result.work_ram_bytes = work_ram_budget(options.memory_limit, ram_store);
   WorkSpace space(work, result.work_ram_bytes);
+  // A store mapped from files is visited chunk by chunk through the scheduler; one in RAM is
+  // resident as a whole.
+  const MeshStore& remeshed = result.subdivision_levels > 0 ? subdivided : store;
+  std::optional<ChunkScheduler> scheduler;
+  if (remeshed.ram_bytes() == 0 && !view.chunks.empty()) {
+    scheduler.emplace(remeshed, &space, resident_budget(options.memory_limit));
+    view.residency = &*scheduler;
+  }
   remesh_options.clustering.storage = &space;
   remesh_options.keep_vertex_labels = false;  // only the output mesh leaves the job
   result.remesh = remesh(view, remesh_options, space);
   result.work_file_peak_bytes = space.peak_file_bytes();
+  if (scheduler) result.schedule = scheduler->report();
   if (result.remesh.mesh.face_count() == 0)
     // An empty file is no answer: every component was dropped, or is thinner than a cluster
     // everywhere (a needle), or has no area.

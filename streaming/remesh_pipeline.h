@@ -10,6 +10,7 @@
 
 #include "core/mesh_stats.h"
 #include "core/remesh.h"
+#include "streaming/chunk_scheduler.h"
 #include "streaming/store.h"
 
 namespace streamcvd {
@@ -51,6 +52,9 @@ struct PipelineResult {
   uint64_t work_file_peak_bytes = 0;  ///< largest total of mapped work files at once
   bool store_in_ram = true;        ///< the (temporary or subdivided) store was built in RAM
   std::string kept_store;          ///< keep_work: the store left in the work folder
+  /// Chunk visits per stage and releases, when the remeshed store was mapped from files (a store
+  /// in RAM is resident as a whole: no scheduler, empty stages).
+  SchedulerReport schedule;
 };
 
 /// Summary figures of a store view in O(V) (Euler characteristic from CSR degrees).

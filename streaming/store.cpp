@@ -538,6 +538,7 @@ void MeshStore::advise(uint32_t chunk, Advice advice) const {
   const int how = advice == Advice::WillNeed ? MADV_WILLNEED
                   : advice == Advice::DontNeed ? MADV_DONTNEED
                   : advice == Advice::Sequential ? MADV_SEQUENTIAL
+                  : advice == Advice::Cold       ? MADV_COLD
                                                  : MADV_RANDOM;
   const uintptr_t page = uintptr_t(::sysconf(_SC_PAGESIZE));
   auto advise_bytes = [&](int file, uint64_t begin, uint64_t end) {

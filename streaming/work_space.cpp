@@ -83,6 +83,10 @@ void* WorkSpace::allocate(size_t bytes, const char* name) {
   const uint64_t now = files_ += bytes;
   for (uint64_t peak = peak_files_.load(); now > peak && !peak_files_.compare_exchange_weak(peak, now);) {
   }
+  {
+    std::lock_guard lock(mutex_);
+    file_regions_[p] = bytes;
+  }
   std::lock_guard lock(g_mapped_mutex);
   g_file_backed[p] = true;
   return p;
@@ -95,9 +99,22 @@ void WorkSpace::release(void* data, size_t bytes) noexcept {
     auto it = g_file_backed.find(data);
     if (it != g_file_backed.end()) file_backed = it->second, g_file_backed.erase(it);
   }
+  if (file_backed) {
+    std::lock_guard lock(mutex_);
+    file_regions_.erase(data);
+  }
   ::munmap(data, bytes);
   if (file_backed) files_ -= bytes;
   else ram_ -= bytes;
+}
+
+std::vector<std::pair<const void*, size_t>> WorkSpace::file_regions(uint32_t V) const {
+  std::vector<std::pair<const void*, size_t>> out;
+  if (V == 0) return out;
+  std::lock_guard lock(mutex_);
+  for (const auto& [data, bytes] : file_regions_)
+    if (bytes % V == 0 && bytes / V >= 1 && bytes / V <= 256) out.push_back({data, bytes});
+  return out;
 }
 
 void WorkSpace::will_need(const void* data, size_t bytes) {

@@ -9,7 +9,10 @@
 #include <atomic>
 #include <cstdint>
 #include <mutex>
+#include <map>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "core/large_array.h"
 
@@ -29,6 +32,10 @@ class WorkSpace final : public ArrayStorage {
   void will_need(const void* data, size_t bytes) override;
   void dont_need(const void* data, size_t bytes) override;
 
+  /// The file-backed arrays of exactly V·s bytes (s = 1..256): the per-vertex work arrays a
+  /// chunk scheduler advises by vertex range. (address, bytes); thread-safe.
+  std::vector<std::pair<const void*, size_t>> file_regions(uint32_t V) const;
+
   const std::string& folder() const { return folder_; }
   uint64_t ram_bytes() const { return ram_.load(); }
   uint64_t file_bytes() const { return files_.load(); }
@@ -39,7 +46,8 @@ class WorkSpace final : public ArrayStorage {
   std::string folder_;
   uint64_t ram_budget_;
   std::atomic<uint64_t> ram_{0}, files_{0}, peak_files_{0};
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
+  std::map<const void*, size_t> file_regions_;  // file-backed arrays by address
 };
 
 }  // namespace streamcvd

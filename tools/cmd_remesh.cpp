@@ -309,6 +309,15 @@ void add_remesh_command(CLI::App& app) {
                      {"work_file_peak_bytes", r.work_file_peak_bytes},
                      {"store_in_ram", r.store_in_ram}};
       j["io"] = {{"read_bytes", io1.read_bytes - io0.read_bytes}, {"write_bytes", io1.write_bytes - io0.write_bytes}};
+      if (!r.schedule.stages.empty()) {
+        nlohmann::json stages = nlohmann::json::object();
+        for (const StageVisits& s : r.schedule.stages)
+          stages[s.stage] = {{"visits", s.visits}, {"vertices", s.vertices}, {"chunks_fetched", s.chunks_fetched}};
+        j["chunk_visits"] = {{"chunks", r.schedule.chunks},
+                             {"resident_budget_bytes", r.schedule.resident_budget_bytes == ~uint64_t(0) ? 0 : r.schedule.resident_budget_bytes},
+                             {"chunks_released", r.schedule.chunks_released},
+                             {"stages", stages}};
+      }
       if (!r.kept_store.empty()) j["kept_store"] = r.kept_store;
       write_file_atomic(args->report, j.dump(2) + "\n");
     }

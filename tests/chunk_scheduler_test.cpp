@@ -1,0 +1,98 @@
+// The chunk scheduler (streaming/chunk_scheduler.h): visits counted per stage, chunks read ahead
+// once while resident and released past the budget, and the remesh of a mapped store visited
+// through it identical to the remesh of the same store in RAM.
+#include "streaming/chunk_scheduler.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "core/remesh.h"
+#include "streaming/mesh_io.h"
+#include "streaming/remesh_pipeline.h"
+#include "streaming/store.h"
+#include "tests/test_util.h"
+
+namespace streamcvd {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct MappedElephant {
+  fs::path dir;
+  MeshStore in_ram, mapped;
+  MappedElephant() {
+    dir = fs::temp_directory_path() / ("streamcvd_scheduler_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    const MeshBuffers elephant = read_mesh(test::data_path("cgal_elephant.off"));
+    in_ram = MeshStore::build(elephant.view(), {.faces_per_chunk = 500});
+    in_ram.write(dir.string());
+    mapped = MeshStore::open(dir.string());
+  }
+  ~MappedElephant() { fs::remove_all(dir); }
+};
+
+const StageVisits* find_stage(const SchedulerReport& r, const std::string& name) {
+  for (const StageVisits& s : r.stages)
+    if (s.stage == name) return &s;
+  return nullptr;
+}
+
+TEST(ChunkScheduler, CountsVisitsAndReleasesPastTheBudget) {
+  MappedElephant m;
+  const MeshView view = m.mapped.view();
+  ASSERT_EQ(m.mapped.ram_bytes(), 0u);
+  const uint32_t chunks = uint32_t(view.chunks.size());
+  ASSERT_GE(chunks, 6u);
+  ChunkScheduler roomy(m.mapped, nullptr, ~uint64_t(0));
+  ChunkScheduler tight(m.mapped, nullptr, 1);  // any left chunk is past the budget
+  for (int pass = 0; pass < 2; ++pass)
+    for (const Chunk& c : view.chunks)
+      for (ChunkScheduler* s : {&roomy, &tight}) {
+        s->enter("pass", {c.vertex_begin, c.vertex_end});
+        s->leave("pass", {c.vertex_begin, c.vertex_end});
+      }
+  const SchedulerReport r = roomy.report(), t = tight.report();
+  ASSERT_EQ(r.stages.size(), 1u);
+  EXPECT_EQ(r.stages[0].visits, 2u * chunks);
+  EXPECT_EQ(r.stages[0].vertices, 2u * view.vertex_count());
+  EXPECT_EQ(r.stages[0].chunks_fetched, chunks);  // resident after the first pass
+  EXPECT_EQ(r.chunks_released, 0u);
+  EXPECT_EQ(t.stages[0].chunks_fetched, 2u * chunks);  // released each time, fetched again
+  EXPECT_EQ(t.chunks_released, 2u * chunks);
+  // A range over several chunks holds them all while entered: none is released meanwhile.
+  ChunkScheduler nested(m.mapped, nullptr, 1);
+  nested.enter("outer", {0, view.vertex_count()});
+  nested.enter("inner", {view.chunks[1].vertex_begin, view.chunks[1].vertex_end});
+  nested.leave("inner", {view.chunks[1].vertex_begin, view.chunks[1].vertex_end});
+  EXPECT_EQ(nested.report().chunks_released, 0u);
+  nested.leave("outer", {0, view.vertex_count()});
+  EXPECT_EQ(nested.report().chunks_released, chunks);
+  EXPECT_EQ(find_stage(nested.report(), "inner")->chunks_fetched, 0u);
+}
+
+TEST(ChunkScheduler, MappedStoreRemeshesAsInRam) {
+  MappedElephant m;
+  PipelineOptions o;
+  o.remesh.vertices = 1200;
+  o.remesh.clustering.threads = 1;
+  o.subdivide = 0;
+  o.memory_limit = 64ull << 20;  // a resident budget of 64 MiB; the tight case is tested above
+  const PipelineResult mapped = remesh_store(m.mapped, o);
+  const PipelineResult in_ram = remesh_store(m.in_ram, o);
+  ASSERT_GT(mapped.remesh.mesh.triangles.size(), 0u);
+  EXPECT_TRUE(mapped.remesh.mesh.positions == in_ram.remesh.mesh.positions);
+  EXPECT_TRUE(mapped.remesh.mesh.triangles == in_ram.remesh.mesh.triangles);
+  EXPECT_TRUE(in_ram.schedule.stages.empty());  // a store in RAM is resident as a whole
+  for (const char* stage : {"items", "sampling", "clustering", "cleaning", "dual", "placement"}) {
+    const StageVisits* s = find_stage(mapped.schedule, stage);
+    ASSERT_NE(s, nullptr) << stage;
+    EXPECT_GT(s->visits, 0u) << stage;
+  }
+  const StageVisits* items = find_stage(mapped.schedule, "items");
+  EXPECT_EQ(items->vertices, m.mapped.view().vertex_count());  // one pass over every vertex
+}
+
+}  // namespace
+}  // namespace streamcvd

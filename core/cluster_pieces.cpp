@@ -20,7 +20,7 @@ std::vector<VertexRange> ranges_of(const MeshView& mesh) {
 // Joins every labelled vertex of the range to its same-label neighbours: the pieces.
 RangeFill same_label_joins(const MeshView& mesh, std::span<const int32_t> labels) {
   return [&mesh, labels](size_t, VertexRange range, RangePieceBuilder& b) {
-    const RangeVisit visit(mesh, "cleaning", range);
+    const RangeVisit visit(mesh, "cleaning", range, kReadsNeighbours);
     for (uint32_t v = range.begin; v < range.end; ++v) {
       const int32_t l = labels[v];
       if (l < 0) continue;

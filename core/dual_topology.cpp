@@ -65,7 +65,7 @@ std::vector<uint32_t> cluster_sizes(const MeshView& mesh, std::span<const int32_
   // Integer counts: the same whatever the order of the increments.
   tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
-      const RangeVisit visit(mesh, "dual", ranges[i]);
+      const RangeVisit visit(mesh, "dual", ranges[i], 0);  // labels only
       for (uint32_t v = ranges[i].begin; v < ranges[i].end; ++v)
         if (labels[v] >= 0) std::atomic_ref<uint32_t>(size[labels[v]]).fetch_add(1, std::memory_order_relaxed);
     }
@@ -87,7 +87,7 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels) {
       Face t;
       if (blocks[i].end <= blocks[i].begin) continue;
       // Faces are sorted by owner (their least corner): the block's owners form one range.
-      const RangeVisit visit(mesh, "dual", {owner_of(T, blocks[i].begin), owner_of(T, blocks[i].end - 1) + 1});
+      const RangeVisit visit(mesh, "dual", {owner_of(T, blocks[i].begin), owner_of(T, blocks[i].end - 1) + 1}, kReadsTriangles);
       for (uint64_t f = blocks[i].begin; f < blocks[i].end; ++f)
         if (face_triple(T + 3 * f, labels, t)) out.push_back(t);
       emitted[i] = out.size();

@@ -28,7 +28,7 @@ ItemData compute_item_data(const MeshView& mesh, std::span<const float> density,
   const float* P = mesh.positions.data();
   const uint32_t* T = mesh.triangles.data();
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, V, 4096), [&](const tbb::blocked_range<uint32_t>& r) {
-    const RangeVisit visit(mesh, "items", {r.begin(), r.end()});
+    const RangeVisit visit(mesh, "items", {r.begin(), r.end()}, kReadsPositions | kReadsTriangles | kReadsVertexFaces);
     for (uint32_t v = r.begin(); v != r.end(); ++v) {
       double w = 0, g[3] = {0, 0, 0};
       const double pv[3] = {P[3 * v] - items.origin[0], P[3 * v + 1] - items.origin[1], P[3 * v + 2] - items.origin[2]};

@@ -61,8 +61,19 @@ struct VertexRange {
 class RangeResidency {
  public:
   virtual ~RangeResidency() = default;
-  virtual void enter(const char* stage, VertexRange range) = 0;
+  /// `arrays`: the MeshArray bits of the view's arrays the visit reads (the rest is not read ahead).
+  virtual void enter(const char* stage, VertexRange range, uint8_t arrays) = 0;
   virtual void leave(const char* stage, VertexRange range) = 0;
+};
+
+/// The arrays of a MeshView a range visit reads, for RangeVisit.
+enum MeshArray : uint8_t {
+  kReadsPositions = 1u << 0,
+  kReadsTriangles = 1u << 1,      ///< the faces the range's vertices own
+  kReadsNeighbours = 1u << 2,     ///< vertex_vertex_offsets and vertex_vertex
+  kReadsVertexFaces = 1u << 3,    ///< vertex_face_offsets and vertex_face
+  kReadsFlags = 1u << 4,
+  kReadsAllArrays = 0x1f,
 };
 
 struct MeshView {
@@ -91,9 +102,9 @@ struct MeshView {
 /// Tells the view's residency hooks (if any) that `range` is worked on during its lifetime.
 class RangeVisit {
  public:
-  RangeVisit(const MeshView& mesh, const char* stage, VertexRange range)
+  RangeVisit(const MeshView& mesh, const char* stage, VertexRange range, uint8_t arrays)
       : hooks_(mesh.residency), stage_(stage), range_(range) {
-    if (hooks_) hooks_->enter(stage_, range_);
+    if (hooks_) hooks_->enter(stage_, range_, arrays);
   }
   ~RangeVisit() {
     if (hooks_) hooks_->leave(stage_, range_);

@@ -376,7 +376,7 @@ void ParallelLoop<kAniso, kOffsets>::visit_region(const Partition& p, uint32_t r
   w.moves = 0;
   w.sweeps = 0;
   if (w.cand.empty()) return;
-  const RangeVisit visit(mesh_, "clustering", {p.begin[r], p.begin[r + 1]});
+  const RangeVisit visit(mesh_, "clustering", {p.begin[r], p.begin[r + 1]}, kReadsNeighbours);
   // Deterministic mode sweeps once per visit: its regions leave the clusters they share to the
   // other partition and the serial pass, so iterating them alone to quiet would converge the
   // interiors and stop the rounds before the frontiers have.

@@ -40,7 +40,7 @@ template <typename Body>
 void for_each_vertex(uint32_t V, const MeshView* mesh, const Body& body) {
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, V, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
     if (mesh) {
-      const RangeVisit visit(*mesh, "placement", {r.begin(), r.end()});
+      const RangeVisit visit(*mesh, "placement", {r.begin(), r.end()}, kReadsPositions | kReadsTriangles | kReadsVertexFaces);
       for (uint32_t v = r.begin(); v != r.end(); ++v) body(v);
     } else {
       for (uint32_t v = r.begin(); v != r.end(); ++v) body(v);

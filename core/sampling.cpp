@@ -38,7 +38,7 @@ template <class Fn>
 void for_each_range(const MeshView& mesh, std::span<const VertexRange> ranges, const Fn& fn) {
   tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
-      const RangeVisit visit(mesh, "sampling", ranges[i]);
+      const RangeVisit visit(mesh, "sampling", ranges[i], kReadsNeighbours | kReadsVertexFaces | kReadsFlags);
       fn(i);
     }
   });

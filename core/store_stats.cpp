@@ -310,7 +310,7 @@ TopologyStats compute_topology_stats(const MeshView& mesh) {
       [&](const tbb::blocked_range<size_t>& rr) {
         Scratch& sc = scratch.local();
         for (size_t i = rr.begin(); i != rr.end(); ++i) {
-          const RangeVisit visit(mesh, "info", ranges[i]);
+          const RangeVisit visit(mesh, "info", ranges[i], kReadsAllArrays);
           sc.parts.begin(ranges[i]);
           sc.loops.begin(ranges[i]);
           sc.begin = ranges[i].begin;

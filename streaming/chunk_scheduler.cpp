@@ -17,12 +17,14 @@ void advise_pages(const void* data, size_t bytes, int advice) {
   if (hi > lo) ::madvise(reinterpret_cast<void*>(lo), hi - lo, advice);
 }
 
+constexpr uint8_t kWorkArrays = 0x80;  // resident_ bit: the chunk's per-vertex work-array slices
+
 }  // namespace
 
 ChunkScheduler::ChunkScheduler(const MeshStore& store, const WorkSpace* work, uint64_t resident_budget)
     : store_(store), view_(store.view()), work_(work), budget_(resident_budget),
       resident_(view_.chunks.size(), 0), busy_(view_.chunks.size(), 0), left_stamp_(view_.chunks.size(), 0),
-      queued_size_(view_.chunks.size(), 0) {}
+      queued_size_(view_.chunks.size(), 0), left_stage_(view_.chunks.size(), "") {}
 
 std::pair<uint32_t, uint32_t> ChunkScheduler::chunks_of(VertexRange range) const {
   const auto& chunks = view_.chunks;
@@ -34,13 +36,18 @@ std::pair<uint32_t, uint32_t> ChunkScheduler::chunks_of(VertexRange range) const
   return {first, std::max(last, first + 1)};
 }
 
-uint64_t ChunkScheduler::chunk_bytes(uint32_t c) const {
+uint64_t ChunkScheduler::chunk_bytes(uint32_t c, uint8_t arrays) const {
   const Chunk& k = view_.chunks[c];
   const uint64_t n = k.vertex_end - k.vertex_begin;
-  uint64_t bytes = n * (12 + 1 + 16) + 12 * (k.face_end - k.face_begin) +
-                   4 * (view_.vertex_vertex_offsets[k.vertex_end] - view_.vertex_vertex_offsets[k.vertex_begin]) +
-                   4 * (view_.vertex_face_offsets[k.vertex_end] - view_.vertex_face_offsets[k.vertex_begin]);
-  if (work_)
+  uint64_t bytes = 0;
+  if (arrays & kReadsPositions) bytes += 12 * n;
+  if (arrays & kReadsTriangles) bytes += 12 * (k.face_end - k.face_begin);
+  if (arrays & kReadsNeighbours)
+    bytes += 8 * n + 4 * (view_.vertex_vertex_offsets[k.vertex_end] - view_.vertex_vertex_offsets[k.vertex_begin]);
+  if (arrays & kReadsVertexFaces)
+    bytes += 8 * n + 4 * (view_.vertex_face_offsets[k.vertex_end] - view_.vertex_face_offsets[k.vertex_begin]);
+  if (arrays & kReadsFlags) bytes += n;
+  if (work_ && (arrays & kWorkArrays))
     for (const auto& [data, size] : work_->file_regions(view_.vertex_count())) bytes += n * (size / view_.vertex_count());
   return bytes;
 }
@@ -62,10 +69,10 @@ StageVisits& ChunkScheduler::stage_of(const char* stage) {
   return stages_.back().second;
 }
 
-void ChunkScheduler::enter(const char* stage, VertexRange range) {
+void ChunkScheduler::enter(const char* stage, VertexRange range, uint8_t arrays) {
   if (range.end <= range.begin || view_.chunks.empty()) return;
   const auto [first, last] = chunks_of(range);
-  std::vector<uint32_t> fetch;
+  std::vector<std::pair<uint32_t, uint8_t>> fetch;  // (chunk, arrays to read ahead)
   {
     std::lock_guard lock(mutex_);
     StageVisits& visits = stage_of(stage);
@@ -76,45 +83,55 @@ void ChunkScheduler::enter(const char* stage, VertexRange range) {
         queued_bytes_ -= queued_size_[c];
         left_stamp_[c] = 0;
       }
-      if (!resident_[c]) resident_[c] = 1, fetch.push_back(c);
+      const uint8_t missing = uint8_t((arrays | kWorkArrays) & ~resident_[c]);
+      if (missing) {
+        if (resident_[c] == 0) ++visits.chunks_fetched;
+        resident_[c] |= missing;
+        fetch.push_back({c, missing});
+      }
     }
-    visits.chunks_fetched += fetch.size();
   }
-  for (uint32_t c : fetch) {
+  for (const auto& [c, missing] : fetch) {
     store_.validate_chunk(c);
-    store_.advise(c, MeshStore::Advice::WillNeed);
-    advise_work_arrays(c, true);
+    if (missing & kReadsAllArrays) store_.advise(c, MeshStore::Advice::WillNeed, missing & kReadsAllArrays);
+    if (missing & kWorkArrays) advise_work_arrays(c, true);
   }
 }
 
 void ChunkScheduler::leave(const char* stage, VertexRange range) {
-  (void)stage;
   if (range.end <= range.begin || view_.chunks.empty()) return;
   const auto [first, last] = chunks_of(range);
-  std::vector<uint32_t> release;
+  std::vector<std::pair<uint32_t, uint8_t>> release;  // (chunk, arrays read ahead)
   {
     std::lock_guard lock(mutex_);
     for (uint32_t c = first; c < last; ++c) {
       if (--busy_[c] != 0 || !resident_[c]) continue;
       left_stamp_[c] = ++stamp_;
+      left_stage_[c] = stage;
       left_.push_back({c, stamp_});
-      queued_size_[c] = chunk_bytes(c);
+      queued_size_[c] = chunk_bytes(c, resident_[c]);
       queued_bytes_ += queued_size_[c];
     }
     while (queued_bytes_ > budget_ && !left_.empty()) {
       const auto [c, stamp] = left_.front();
+      if (left_stamp_[c] != stamp) {  // entered (and maybe left) again since: stale
+        left_.pop_front();
+        continue;
+      }
+      // Only what earlier stages left goes: a stage's own rounds revisit its chunks cyclically,
+      // and releasing them ahead of the kernel's reclaim only made it read them again.
+      if (left_stage_[c] == stage || std::strcmp(left_stage_[c], stage) == 0) break;
       left_.pop_front();
-      if (left_stamp_[c] != stamp) continue;  // entered (and maybe left) again since: stale
       queued_bytes_ -= queued_size_[c];
       left_stamp_[c] = 0;
+      release.push_back({c, resident_[c]});
       resident_[c] = 0;
-      release.push_back(c);
       ++released_;
     }
   }
-  for (uint32_t c : release) {
-    store_.advise(c, MeshStore::Advice::Cold);
-    advise_work_arrays(c, false);
+  for (const auto& [c, arrays] : release) {
+    if (arrays & kReadsAllArrays) store_.advise(c, MeshStore::Advice::Cold, arrays & kReadsAllArrays);
+    if (arrays & kWorkArrays) advise_work_arrays(c, false);
   }
 }
 

@@ -3,8 +3,11 @@
 // the store's mapped arrays and the job's per-vertex work files. Entering a range validates its
 // chunks on first use (MeshStore::validate_chunk) and reads their pages ahead (MADV_WILLNEED);
 // leaving it queues them; once the queued chunks exceed the resident budget, the least recently
-// left are released (MADV_COLD: the kernel reclaims them first, their contents stay valid). The
-// order of the work never depends on it; only residency does. Counts visits per stage.
+// left by an earlier stage are released (MADV_COLD: the kernel reclaims them first, their
+// contents stay valid); a stage's own chunks are not, its rounds come back to them. Only
+// the arrays a visit says it reads are read ahead (reading a chunk's every array for a stage
+// that needs two of them cost the 105M-face run 70 GB of reads inside 2 GiB). The order of the
+// work never depends on it; only residency does. Counts visits per stage.
 #pragma once
 
 #include <cstdint>
@@ -41,14 +44,14 @@ class ChunkScheduler final : public RangeResidency {
   /// bytes of left chunks before releasing. O(chunks) memory.
   ChunkScheduler(const MeshStore& store, const WorkSpace* work, uint64_t resident_budget);
 
-  void enter(const char* stage, VertexRange range) override;
+  void enter(const char* stage, VertexRange range, uint8_t arrays) override;
   void leave(const char* stage, VertexRange range) override;
 
   SchedulerReport report() const;
 
  private:
   std::pair<uint32_t, uint32_t> chunks_of(VertexRange range) const;
-  uint64_t chunk_bytes(uint32_t c) const;
+  uint64_t chunk_bytes(uint32_t c, uint8_t arrays) const;
   void advise_work_arrays(uint32_t c, bool will_need) const;
   StageVisits& stage_of(const char* stage);
 
@@ -57,11 +60,13 @@ class ChunkScheduler final : public RangeResidency {
   const WorkSpace* work_;
   const uint64_t budget_;
   mutable std::mutex mutex_;
-  std::vector<uint8_t> resident_;       // per chunk: 1 once read ahead and not released since
+  std::vector<uint8_t> resident_;       // per chunk: MeshArray bits read ahead (kWorkArrays: its
+                                        // work-array slices) and not released since
   std::vector<uint32_t> busy_;          // per chunk: ranges entered and not yet left
   std::deque<std::pair<uint32_t, uint64_t>> left_;  // (chunk, stamp) as left, least recent first
   std::vector<uint64_t> left_stamp_;    // per chunk: stamp of its valid entry in left_, 0 = none
   std::vector<uint64_t> queued_size_;   // per chunk: bytes it counts in queued_bytes_
+  std::vector<const char*> left_stage_;  // per chunk: the stage that left it last
   uint64_t stamp_ = 0;
   uint64_t queued_bytes_ = 0;
   uint64_t released_ = 0;

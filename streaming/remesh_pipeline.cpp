@@ -33,12 +33,12 @@ uint64_t work_ram_budget(uint64_t limit, uint64_t ram_store_bytes) {
   return limit > ram_store_bytes ? (limit - ram_store_bytes) / 2 : 0;
 }
 
-// Bytes of left chunks (store slices and their per-vertex work arrays) the scheduler keeps
-// before releasing: a quarter of the limit (the other page-cache quarter serves the K-sized
-// state's neighbours and read-ahead). ~0 = no limit.
-uint64_t resident_budget(uint64_t limit) {
+// Bytes of left chunks (the store slices their visits read and their per-vertex work arrays)
+// the scheduler keeps before releasing: the page-cache share of the limit, what the per-vertex
+// arrays' RAM budget leaves. ~0 = no limit.
+uint64_t resident_budget(uint64_t limit, uint64_t work_ram_bytes) {
   if (limit == 0) return ~uint64_t(0);
-  return std::max<uint64_t>(limit / 4, 64ull << 20);
+  return std::max<uint64_t>(limit > work_ram_bytes ? limit - work_ram_bytes : 0, 64ull << 20);
 }
 }  // namespace
 
@@ -92,7 +92,7 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   const MeshStore& remeshed = result.subdivision_levels > 0 ? subdivided : store;
   std::optional<ChunkScheduler> scheduler;
   if (remeshed.ram_bytes() == 0 && !view.chunks.empty()) {
-    scheduler.emplace(remeshed, &space, resident_budget(options.memory_limit));
+    scheduler.emplace(remeshed, &space, resident_budget(options.memory_limit, result.work_ram_bytes));
     view.residency = &*scheduler;
   }
   remesh_options.clustering.storage = &space;

@@ -532,7 +532,7 @@ void MeshStore::validate_all() const {
                     });
 }
 
-void MeshStore::advise(uint32_t chunk, Advice advice) const {
+void MeshStore::advise(uint32_t chunk, Advice advice, uint8_t arrays) const {
   const Impl& s = *impl_;
   if (s.mappings.empty()) return;
   const int how = advice == Advice::WillNeed ? MADV_WILLNEED
@@ -555,13 +555,18 @@ void MeshStore::advise(uint32_t chunk, Advice advice) const {
   const Chunk& c = s.view.chunks[chunk];
   const MeshView& m = s.view;
   const uint64_t vb = c.vertex_begin, ve = c.vertex_end;
-  advise_bytes(kPositions, 12 * vb, 12 * ve);
-  advise_bytes(kTriangles, 12 * c.face_begin, 12 * c.face_end);
-  advise_bytes(kVvOffsets, 8 * vb, 8 * (ve + 1));
-  advise_bytes(kVv, 4 * m.vertex_vertex_offsets[vb], 4 * m.vertex_vertex_offsets[ve]);
-  advise_bytes(kVfOffsets, 8 * vb, 8 * (ve + 1));
-  advise_bytes(kVf, 4 * m.vertex_face_offsets[vb], 4 * m.vertex_face_offsets[ve]);
-  advise_bytes(kFlags, vb, ve);
+  if (arrays & kReadsPositions) advise_bytes(kPositions, 12 * vb, 12 * ve);
+  if (arrays & kReadsTriangles) advise_bytes(kTriangles, 12 * c.face_begin, 12 * c.face_end);
+  if (arrays & kReadsNeighbours) {
+    advise_bytes(kVvOffsets, 8 * vb, 8 * (ve + 1));
+    advise_bytes(kVv, 4 * m.vertex_vertex_offsets[vb], 4 * m.vertex_vertex_offsets[ve]);
+  }
+  if (arrays & kReadsVertexFaces) {
+    advise_bytes(kVfOffsets, 8 * vb, 8 * (ve + 1));
+    advise_bytes(kVf, 4 * m.vertex_face_offsets[vb], 4 * m.vertex_face_offsets[ve]);
+  }
+  if (arrays & kReadsFlags) advise_bytes(kFlags, vb, ve);
+  if (arrays != kReadsAllArrays) return;
   advise_bytes(kOriginal, 4 * vb, 4 * ve);
   advise_bytes(kAttributes, 4 * s.header.attribute_count * vb, 4 * s.header.attribute_count * ve);
 }

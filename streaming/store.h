@@ -105,7 +105,9 @@ class MeshStore {
   /// madvise over the chunk's slices of every mapped array (WillNeed before a visit, Cold or
   /// DontNeed after), or over whole arrays with chunk = kAllChunks. A no-op for a store in RAM.
   static constexpr uint32_t kAllChunks = ~uint32_t(0);
-  void advise(uint32_t chunk, Advice advice) const;
+  /// `arrays` (MeshArray bits) limits the advice to those arrays of the chunk; original ids and
+  /// attributes are advised only with kReadsAllArrays.
+  void advise(uint32_t chunk, Advice advice, uint8_t arrays = kReadsAllArrays) const;
 
   MeshView view() const;
   const StoreHeader& header() const;

@@ -149,30 +149,27 @@ ComponentTable chunked_components(std::span<const VertexRange> ranges, const Ran
   return merge_range_pieces(ranges, pieces);
 }
 
-void for_each_component_label(std::span<const VertexRange> ranges, const ComponentTable& table,
-                              const RangeFill& fill, const RangeLabels& sink) {
-  if (table.piece_base.size() != ranges.size() + 1)
-    throw std::logic_error("for_each_component_label: the table was made for other ranges");
-  struct Scratch {
-    RangePieceBuilder builder;
-    std::vector<uint32_t> labels;
-  };
-  tbb::enumerable_thread_specific<Scratch> scratch;
+ComponentTable chunked_component_labels(std::span<const VertexRange> ranges, const RangeFill& fill,
+                                        std::span<uint32_t> component_of_vertex) {
+  std::vector<RangePieces> pieces(ranges.size());
+  tbb::enumerable_thread_specific<RangePieceBuilder> builders;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-    Scratch& s = scratch.local();
+    RangePieceBuilder& b = builders.local();
     for (size_t i = r.begin(); i != r.end(); ++i) {
-      s.builder.begin(ranges[i]);
-      fill(i, ranges[i], s.builder);
-      s.labels.resize(ranges[i].size());
-      const RangePieces p = s.builder.finish(s.labels);
-      if (p.pieces != table.piece_base[i + 1] - table.piece_base[i])
-        throw std::logic_error("for_each_component_label: range " + std::to_string(i) +
-                               " has other pieces than when the table was made");
-      for (uint32_t& l : s.labels)
-        if (l != kNoComponent) l = table.component_of_piece[table.piece_base[i] + l];
-      sink(i, ranges[i], s.labels);
+      b.begin(ranges[i]);
+      fill(i, ranges[i], b);
+      pieces[i] = b.finish(component_of_vertex.subspan(ranges[i].begin, ranges[i].size()));
     }
   });
+  ComponentTable table = merge_range_pieces(ranges, pieces);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i)
+      for (uint32_t v = ranges[i].begin; v < ranges[i].end; ++v) {
+        uint32_t& c = component_of_vertex[v];
+        if (c != kNoComponent) c = table.component(i, c);
+      }
+  });
+  return table;
 }
 
 }  // namespace streamcvd

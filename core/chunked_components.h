@@ -127,19 +127,18 @@ std::vector<VertexRange> chunk_ranges(std::span<const Chunk> chunks, uint32_t ma
 
 /// Fills one range: the caller adds/joins the vertices of `range` (called between begin and finish).
 using RangeFill = std::function<void(size_t index, VertexRange range, RangePieceBuilder& builder)>;
-/// Receives the component id of each vertex of one range (kNoComponent for non-members).
-using RangeLabels = std::function<void(size_t index, VertexRange range, std::span<const uint32_t> component)>;
 
 /// Components of the graph that `fill` describes: fill runs once per range, in parallel (TBB)
 /// with one builder per thread, then merge_range_pieces. Memory as the module comment says;
 /// time O(V + joins) plus the merge. `fill` must be safe to call concurrently for different ranges.
 ComponentTable chunked_components(std::span<const VertexRange> ranges, const RangeFill& fill);
 
-/// Second pass for per-vertex labels: runs `fill` again per range (it must make the same joins as
-/// for `table`; a different piece count throws std::logic_error) and hands each range's
-/// component ids to `sink`, concurrently for different ranges, in no particular order.
-/// Memory: one range's labels per thread.
-void for_each_component_label(std::span<const VertexRange> ranges, const ComponentTable& table,
-                              const RangeFill& fill, const RangeLabels& sink);
+/// Components with per-vertex labels in one union-find pass: each range writes its local piece
+/// ids into `component_of_vertex` (V entries, kNoComponent for non-members), the merge numbers
+/// the components, and a light pass (no union-find) turns piece ids into component ids. In
+/// parallel over the ranges; memory: the caller's array plus one builder per thread.
+ComponentTable chunked_component_labels(std::span<const VertexRange> ranges, const RangeFill& fill,
+                                        std::span<uint32_t> component_of_vertex);
+
 
 }  // namespace streamcvd

@@ -36,12 +36,8 @@ RangeFill same_label_joins(const MeshView& mesh, std::span<const int32_t> labels
 uint64_t clean_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                         uint32_t cluster_count, ClusteringReport& report, ArrayStorage& storage) {
   const std::vector<VertexRange> ranges = ranges_of(mesh);
-  const RangeFill fill = same_label_joins(mesh, labels);
-  const ComponentTable table = chunked_components(ranges, fill);
   LargeArray<uint32_t> piece(mesh.vertex_count(), storage, "cluster pieces");
-  for_each_component_label(ranges, table, fill, [&](size_t, VertexRange range, std::span<const uint32_t> c) {
-    std::copy(c.begin(), c.end(), piece.begin() + range.begin);
-  });
+  const ComponentTable table = chunked_component_labels(ranges, same_label_joins(mesh, labels), piece.span());
   // Weights in vertex order (the same sums for any thread count); each cluster keeps its
   // heaviest piece, the first in vertex order on a tie (pieces are numbered by their first vertex).
   std::vector<double> weight(table.components, 0.0);

@@ -1,6 +1,7 @@
 #include "core/placement.h"
 
 #include <atomic>
+#include <cmath>
 #include <cstring>
 #include <limits>
 
@@ -80,13 +81,29 @@ void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels
   for_each_vertex(mesh.vertex_count(), &mesh, [&](uint32_t v) {
     const int32_t c = labels[v];
     if (c < 0) return;
+    const std::array<double, 3> z_c = site(size_t(c)), p_v = corner(P, v);
+    const double to_v = std::sqrt(distance2(z_c, p_v));
     for (uint32_t f : mesh.faces_of(v)) {
       // Each face is tested once per cluster: by its smallest corner of that cluster.
       uint32_t first = UINT32_MAX;
-      for (int k = 0; k < 3; ++k)
-        if (labels[T[3 * size_t(f) + k]] == c) first = std::min(first, T[3 * size_t(f) + k]);
+      double reach = 0;  // the face lies within `reach` of p_v
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t u = T[3 * size_t(f) + k];
+        if (labels[u] == c) first = std::min(first, u);
+        reach = std::max(reach, distance2(p_v, corner(P, u)));
+      }
       if (first != v) continue;
-      atomic_min(best[size_t(c)], candidate_key(distance2(closest(size_t(c), f), site(size_t(c))), f));
+      // A face farther than the best found so far cannot be the closest: skip the exact test
+      // (strictly farther, with a margin for rounding, so the minimum found is the same).
+      const uint64_t seen = std::atomic_ref<uint64_t>(best[size_t(c)]).load(std::memory_order_relaxed);
+      if (seen != kNoCandidate) {
+        const double bound = to_v - std::sqrt(reach);
+        float seen_d2;
+        const uint32_t bits = uint32_t(seen >> 32);
+        std::memcpy(&seen_d2, &bits, 4);
+        if (bound > 0 && bound * bound > 1.0001 * double(seen_d2) + 1e-30) continue;
+      }
+      atomic_min(best[size_t(c)], candidate_key(distance2(closest(size_t(c), f), z_c), f));
     }
   });
   tbb::parallel_for(tbb::blocked_range<size_t>(0, K, kGrain), [&](const tbb::blocked_range<size_t>& r) {

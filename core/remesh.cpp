@@ -220,6 +220,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   DualMesh dual = build_dual_mesh(mesh, labels, K, z, dual_options, &boundary_loops);
   std::vector<uint32_t> defects = find_manifold_defects(dual.mesh.view());
   result.seconds.dual += seconds_since(t);
+  t = std::chrono::steady_clock::now();
   // Final placement (defects do not depend on positions, so it is done once, here). QEM sites
   // already lie on the surface's features; centroids are projected onto the surface.
   {
@@ -241,6 +242,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
     defects = find_manifold_defects(dual.mesh.view());
   }
   result.defect_vertices = defects.size();
+  result.seconds.placement = seconds_since(t);
   if (options.optimize_quality) {  // flips keep V, F, boundary and genus; moves stay on the input
     t = std::chrono::steady_clock::now();
     MeshOptimizeOptions optimize = options.optimize;
@@ -261,6 +263,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
     result.quality_moves = q.moves;
     result.seconds.optimize = seconds_since(t);
   }
+  t = std::chrono::steady_clock::now();
   {  // safety net: collinear float32 vertices (a cluster vertex on a strip chord) give flat faces
     const FlatFaceRepair flat = repair_flat_faces(dual.mesh.positions, dual.mesh.triangles);
     result.flat_faces_removed = flat.faces_removed;
@@ -288,6 +291,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   result.boundary_vertices_added = dual.boundary_vertices_added;
   result.holes_closed = dual.holes_closed;
   result.clusters_connected = clusters_connected(mesh, labels, K);
+  result.seconds.checks = seconds_since(t);
   result.mesh = std::move(dual.mesh);
   hand_over_vertex_labels(options.keep_vertex_labels, labels, result);
   return result;

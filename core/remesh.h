@@ -48,6 +48,8 @@ struct RemeshOptions {
 
 struct StageTimes {
   double curvature = 0, items = 0, sampling = 0, clustering = 0, repair = 0, dual = 0, optimize = 0;
+  double placement = 0;  ///< sites projected onto the input, output vertices placed, dual defects removed
+  double checks = 0;     ///< flat-face safety net, topology and per-component checks, cluster connectivity
   double clustering_cpu = 0;  ///< CPU seconds of all threads during the clustering stage
 };
 

@@ -106,9 +106,11 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
     throw InputError("remeshing left no triangle (" + std::to_string(result.remesh.clusters) +
                      " clusters; components too small or too thin for the budget of " +
                      std::to_string(options.remesh.vertices) + " vertices)");
+  const auto summary_start = std::chrono::steady_clock::now();
   result.input = summarize_input(store.view(), result.remesh.budget.clusters_per_component.size());
   result.output_topology = compute_topology_stats(result.remesh.mesh.view());
   result.output_quality = compute_quality(result.remesh.mesh.view());
+  result.summary_seconds = seconds_since(summary_start);
   return result;
 }
 

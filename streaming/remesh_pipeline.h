@@ -45,6 +45,7 @@ struct PipelineResult {
   int subdivision_levels = 0;
   uint64_t remeshed_vertices = 0, remeshed_faces = 0;  ///< after subdivision
   double load_seconds = 0, subdivide_seconds = 0, store_seconds = 0;
+  double summary_seconds = 0;  ///< input summary, output topology and quality figures
   TopologyStats output_topology;
   QualityStats output_quality;
   uint64_t memory_limit = 0;       ///< the limit planned with

@@ -67,12 +67,10 @@ std::vector<VertexRange> tiling(uint32_t n, uint32_t size) {
 }
 
 std::vector<uint32_t> chunked_labels(const Graph& g, std::span<const VertexRange> ranges, uint64_t& count) {
-  const ComponentTable t = chunked_components(ranges, g.fill());
-  count = t.components;
   std::vector<uint32_t> label(g.n, 12345);
-  for_each_component_label(ranges, t, g.fill(), [&](size_t, VertexRange r, std::span<const uint32_t> c) {
-    std::copy(c.begin(), c.end(), label.begin() + r.begin);  // ranges are disjoint: no race
-  });
+  const ComponentTable t = chunked_component_labels(ranges, g.fill(), label);
+  count = t.components;
+  EXPECT_EQ(chunked_components(ranges, g.fill()).components, count);  // the table alone agrees
   return label;
 }
 
@@ -170,20 +168,6 @@ TEST(ChunkedComponents, OneSidedJoinsThrow) {
   EXPECT_EQ(chunked_components(ranges, both).components, 1u);
 }
 
-TEST(ChunkedComponents, LabelPassMustMakeTheSameJoins) {
-  const std::vector<VertexRange> ranges = tiling(6, 3);
-  Graph g(6);
-  g.edge(0, 1);
-  g.add(2);
-  const ComponentTable t = chunked_components(ranges, g.fill());
-  EXPECT_EQ(t.components, 2u);
-  Graph other(6);
-  other.edge(0, 1);
-  other.edge(1, 2);
-  EXPECT_THROW(for_each_component_label(ranges, t, other.fill(), [](size_t, VertexRange, std::span<const uint32_t>) {}),
-               std::logic_error);
-}
-
 TEST(ChunkedComponents, RangesMustTile) {
   const std::vector<VertexRange> gap = {{0, 3}, {4, 6}};
   const std::vector<RangePieces> pieces(2);
@@ -229,14 +213,11 @@ TEST(ChunkedComponents, MeshComponentsAcrossStoreChunks) {
     }
   };
   const std::vector<VertexRange> ranges = chunk_ranges(m.chunks);
-  const ComponentTable t = chunked_components(ranges, fill);
-  EXPECT_EQ(t.components, 2u);
-  EXPECT_GT(t.frontier_records, 0u);
   // Labels: the sphere's vertices one id, the torus's the other, the isolated vertex none.
   std::vector<uint32_t> label(m.vertex_count());
-  for_each_component_label(ranges, t, fill, [&](size_t, VertexRange r, std::span<const uint32_t> c) {
-    std::copy(c.begin(), c.end(), label.begin() + r.begin);
-  });
+  const ComponentTable t = chunked_component_labels(ranges, fill, label);
+  EXPECT_EQ(t.components, 2u);
+  EXPECT_GT(t.frontier_records, 0u);
   const auto original = store.original_vertex_ids();
   std::map<uint32_t, uint64_t> sphere, torus;
   for (uint32_t v = 0; v < m.vertex_count(); ++v) {

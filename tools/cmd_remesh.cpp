@@ -263,6 +263,8 @@ void add_remesh_command(CLI::App& app) {
                       {"sampling", rm.seconds.sampling},  {"clustering", rm.seconds.clustering},
                       {"clustering_cpu", rm.seconds.clustering_cpu},
                       {"repair", rm.seconds.repair},      {"dual", rm.seconds.dual},         {"optimize", rm.seconds.optimize},
+                      {"placement", rm.seconds.placement}, {"checks", rm.seconds.checks},
+                      {"summary", r.summary_seconds},
                       {"write", write_seconds},           {"total", total}};
       j["clustering"] = {{"clusters", rm.clusters},
                          {"unconstrained_loops", cr.unconstrained_loops},

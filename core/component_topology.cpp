@@ -3,6 +3,10 @@
 #include <algorithm>
 #include <numeric>
 
+#include <tbb/blocked_range.h>
+#include <tbb/combinable.h>
+#include <tbb/parallel_for.h>
+
 namespace streamcvd {
 namespace {
 
@@ -21,6 +25,19 @@ struct UnionFind {
   }
 };
 
+// The first face owned by a vertex ≥ v (faces are sorted by owner, their smallest corner:
+// MeshView). Binary search, O(log F).
+uint64_t first_owned_face(const MeshView& mesh, uint32_t v) {
+  uint64_t lo = 0, hi = mesh.face_count();
+  while (lo < hi) {
+    const uint64_t mid = lo + (hi - lo) / 2;
+    const uint32_t owner = std::min({mesh.triangles[3 * mid], mesh.triangles[3 * mid + 1], mesh.triangles[3 * mid + 2]});
+    if (owner < v) lo = mid + 1;
+    else hi = mid;
+  }
+  return lo;
+}
+
 std::string with_commas(uint64_t n) {
   std::string s = std::to_string(n);
   for (int i = int(s.size()) - 3; i > 0; i -= 3) s.insert(size_t(i), ",");
@@ -31,24 +48,38 @@ std::string with_commas(uint64_t n) {
 
 std::vector<ComponentShape> input_component_shapes(const MeshView& mesh, std::span<const uint32_t> component_of_vertex,
                                                    uint32_t component_count, const BoundaryLoops& loops) {
+  // Integer sums: per-thread tables added up, the same for any thread count.
+  tbb::combinable<std::vector<ComponentShape>> partial([&] { return std::vector<ComponentShape>(component_count); });
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, mesh.vertex_count(), 1u << 14), [&](const tbb::blocked_range<uint32_t>& r) {
+    std::vector<ComponentShape>& shapes = partial.local();
+    const RangeVisit visit(mesh, "checks", {r.begin(), r.end()}, kReadsNeighbours | kReadsFlags | kReadsTriangles);
+    for (uint32_t v = r.begin(); v != r.end(); ++v) {
+      const uint32_t c = component_of_vertex[v];
+      if (c == kNone) continue;
+      ComponentShape& s = shapes[c];
+      const auto nb = mesh.neighbours(v);
+      const int64_t upper = nb.end() - std::upper_bound(nb.begin(), nb.end(), v);  // edges {v, u > v}
+      s.euler += 1 - upper;
+      if (mesh.vertex_flags[v] & kVertexNonManifold) s.manifold = false;
+    }
+    // The faces these vertices own (faces are sorted by owner, their smallest vertex).
+    const uint64_t f_end = r.end() < mesh.vertex_count() ? first_owned_face(mesh, r.end()) : mesh.face_count();
+    for (uint64_t f = first_owned_face(mesh, r.begin()); f < f_end; ++f) {
+      const uint32_t owner = std::min({mesh.triangles[3 * f], mesh.triangles[3 * f + 1], mesh.triangles[3 * f + 2]});
+      const uint32_t c = component_of_vertex[owner];
+      if (c == kNone) continue;
+      ++shapes[c].euler;
+      ++shapes[c].faces;
+    }
+  });
   std::vector<ComponentShape> shapes(component_count);
-  for (uint32_t v = 0; v < mesh.vertex_count(); ++v) {
-    const uint32_t c = component_of_vertex[v];
-    if (c == kNone) continue;
-    ComponentShape& s = shapes[c];
-    const auto nb = mesh.neighbours(v);
-    const int64_t upper = nb.end() - std::upper_bound(nb.begin(), nb.end(), v);  // edges {v, u > v}
-    s.euler += 1 - upper;
-    if (mesh.vertex_flags[v] & kVertexNonManifold) s.manifold = false;
-  }
-  // Faces by owner (their smallest vertex), i.e. in store order.
-  for (uint64_t f = 0; f < mesh.face_count(); ++f) {
-    const uint32_t owner = std::min({mesh.triangles[3 * f], mesh.triangles[3 * f + 1], mesh.triangles[3 * f + 2]});
-    const uint32_t c = component_of_vertex[owner];
-    if (c == kNone) continue;
-    ++shapes[c].euler;
-    ++shapes[c].faces;
-  }
+  partial.combine_each([&](const std::vector<ComponentShape>& part) {
+    for (uint32_t c = 0; c < component_count; ++c) {
+      shapes[c].euler += part[c].euler;
+      shapes[c].faces += part[c].faces;
+      shapes[c].manifold = shapes[c].manifold && part[c].manifold;
+    }
+  });
   for (size_t l = 0; l + 1 < loops.offsets.size(); ++l) {
     if (loops.offsets[l] == loops.offsets[l + 1]) continue;
     const uint32_t c = component_of_vertex[loops.vertices[loops.offsets[l]]];

@@ -74,36 +74,37 @@ void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels
   const float* P = mesh.positions.data();
   const uint32_t* T = mesh.triangles.data();
   auto site = [&](size_t c) { return std::array<double, 3>{z[3 * c], z[3 * c + 1], z[3 * c + 2]}; };
-  auto closest = [&](size_t c, uint32_t f) {
-    return closest_point_on_triangle(site(c), corner(P, T[3 * size_t(f)]), corner(P, T[3 * size_t(f) + 1]),
-                                     corner(P, T[3 * size_t(f) + 2]));
+  auto closest = [&](size_t c, uint64_t f) {
+    return closest_point_on_triangle(site(c), corner(P, T[3 * f]), corner(P, T[3 * f + 1]), corner(P, T[3 * f + 2]));
   };
-  for_each_vertex(mesh.vertex_count(), &mesh, [&](uint32_t v) {
-    const int32_t c = labels[v];
-    if (c < 0) return;
-    const std::array<double, 3> z_c = site(size_t(c)), p_v = corner(P, v);
-    const double to_v = std::sqrt(distance2(z_c, p_v));
-    for (uint32_t f : mesh.faces_of(v)) {
-      // Each face is tested once per cluster: by its smallest corner of that cluster.
-      uint32_t first = UINT32_MAX;
-      double reach = 0;  // the face lies within `reach` of p_v
+  // Face by face (in store order: by owner), each tested against the site of every cluster
+  // among its corners.
+  const uint64_t F = mesh.face_count();
+  auto owner = [&](uint64_t f) { return std::min({T[3 * f], T[3 * f + 1], T[3 * f + 2]}); };
+  tbb::parallel_for(tbb::blocked_range<uint64_t>(0, F, 1u << 15), [&](const tbb::blocked_range<uint64_t>& r) {
+    const RangeVisit visit(mesh, "placement", {owner(r.begin()), owner(r.end() - 1) + 1}, kReadsPositions | kReadsTriangles);
+    for (uint64_t f = r.begin(); f != r.end(); ++f) {
+      const std::array<std::array<double, 3>, 3> p = {corner(P, T[3 * f]), corner(P, T[3 * f + 1]), corner(P, T[3 * f + 2])};
+      const int32_t l[3] = {labels[T[3 * f]], labels[T[3 * f + 1]], labels[T[3 * f + 2]]};
+      // Every point of the face lies within its longest edge of a corner.
+      const double edge = std::sqrt(std::max({distance2(p[0], p[1]), distance2(p[1], p[2]), distance2(p[2], p[0])}));
       for (int k = 0; k < 3; ++k) {
-        const uint32_t u = T[3 * size_t(f) + k];
-        if (labels[u] == c) first = std::min(first, u);
-        reach = std::max(reach, distance2(p_v, corner(P, u)));
+        const int32_t c = l[k];
+        if (c < 0 || (k > 0 && c == l[0]) || (k > 1 && c == l[1])) continue;  // each cluster once
+        const std::array<double, 3> z_c = site(size_t(c));
+        // A face farther than the best found so far cannot be the closest: skip the exact test
+        // (strictly farther, with a margin for rounding, so the minimum found is the same).
+        const uint64_t seen = std::atomic_ref<uint64_t>(best[size_t(c)]).load(std::memory_order_relaxed);
+        if (seen != kNoCandidate) {
+          const double bound =
+              std::sqrt(std::min({distance2(z_c, p[0]), distance2(z_c, p[1]), distance2(z_c, p[2])})) - edge;
+          float seen_d2;
+          const uint32_t bits = uint32_t(seen >> 32);
+          std::memcpy(&seen_d2, &bits, 4);
+          if (bound > 0 && bound * bound > 1.0001 * double(seen_d2) + 1e-30) continue;
+        }
+        atomic_min(best[size_t(c)], candidate_key(distance2(closest(size_t(c), f), z_c), uint32_t(f)));
       }
-      if (first != v) continue;
-      // A face farther than the best found so far cannot be the closest: skip the exact test
-      // (strictly farther, with a margin for rounding, so the minimum found is the same).
-      const uint64_t seen = std::atomic_ref<uint64_t>(best[size_t(c)]).load(std::memory_order_relaxed);
-      if (seen != kNoCandidate) {
-        const double bound = to_v - std::sqrt(reach);
-        float seen_d2;
-        const uint32_t bits = uint32_t(seen >> 32);
-        std::memcpy(&seen_d2, &bits, 4);
-        if (bound > 0 && bound * bound > 1.0001 * double(seen_d2) + 1e-30) continue;
-      }
-      atomic_min(best[size_t(c)], candidate_key(distance2(closest(size_t(c), f), z_c), f));
     }
   });
   tbb::parallel_for(tbb::blocked_range<size_t>(0, K, kGrain), [&](const tbb::blocked_range<size_t>& r) {

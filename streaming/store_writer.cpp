@@ -116,6 +116,7 @@ void StoreDirectoryWriter::finish(const std::string& name, std::span<const std::
 namespace streamcvd {
 
 void MemoryArrayOutput::append(const void* data, size_t n) {
+  if (n == 0) return;  // an empty span may carry a null pointer, which memcpy must not see
   const size_t old = data_.size();
   if (old + n > data_.capacity()) data_.reserve(std::max(old + n, 2 * data_.capacity()));
   data_.resize(old + n);  // no zero fill (DefaultInitVector)

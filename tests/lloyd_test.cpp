@@ -61,28 +61,13 @@ struct Sampled {
 // Every vertex labelled, every cluster non-empty and one connected piece (checked by an own BFS).
 void expect_valid(const MeshView& mesh, const std::vector<int32_t>& labels, uint32_t K) {
   const uint32_t V = mesh.vertex_count();
-  std::vector<uint32_t> size(K, 0), pieces(K, 0);
-  std::vector<uint8_t> seen(V, 0);
+  std::vector<uint32_t> size(K, 0);
   for (uint32_t v = 0; v < V; ++v) {
     ASSERT_GE(labels[v], 0) << v;
     ASSERT_LT(labels[v], int32_t(K)) << v;
     ++size[labels[v]];
   }
-  for (uint32_t s = 0; s < V; ++s) {
-    if (seen[s]) continue;
-    ++pieces[labels[s]];
-    std::vector<uint32_t> stack = {s};
-    seen[s] = 1;
-    while (!stack.empty()) {
-      const uint32_t u = stack.back();
-      stack.pop_back();
-      for (uint32_t n : mesh.neighbours(u))
-        if (!seen[n] && labels[n] == labels[s]) {
-          seen[n] = 1;
-          stack.push_back(n);
-        }
-    }
-  }
+  const std::vector<uint32_t> pieces = test::pieces_per_cluster(mesh, labels, K);
   for (uint32_t c = 0; c < K; ++c) {
     EXPECT_GT(size[c], 0u) << "cluster " << c << " is empty";
     EXPECT_EQ(pieces[c], 1u) << "cluster " << c << " is in " << pieces[c] << " pieces";

@@ -78,24 +78,6 @@ std::vector<uint32_t> reference_components(const MeshView& mesh) {
   return comp;
 }
 
-// Pieces of every cluster by a BFS over same-label edges (independent of clusters_connected).
-std::vector<uint32_t> pieces_per_cluster(const MeshView& mesh, std::span<const int32_t> labels, uint32_t K) {
-  std::vector<uint8_t> seen(mesh.vertex_count(), 0);
-  std::vector<uint32_t> pieces(K, 0);
-  for (uint32_t s = 0; s < mesh.vertex_count(); ++s) {
-    if (labels[s] < 0 || seen[s]) continue;
-    ++pieces[labels[s]];
-    std::vector<uint32_t> stack = {s};
-    seen[s] = 1;
-    while (!stack.empty()) {
-      const uint32_t u = stack.back();
-      stack.pop_back();
-      for (uint32_t n : mesh.neighbours(u))
-        if (!seen[n] && labels[n] == labels[s]) seen[n] = 1, stack.push_back(n);
-    }
-  }
-  return pieces;
-}
 
 // Everything initial_sampling promises for `budget`: labels in range, −1 exactly on isolated
 // vertices and components without clusters, each component holding exactly its clusters, every
@@ -123,7 +105,7 @@ void expect_valid_sampling(const MeshView& mesh, const ComponentBudget& budget, 
   for (size_t c = 0; c < labels_of_component.size(); ++c)
     EXPECT_EQ(labels_of_component[c].size(), budget.clusters_per_component[c]) << "component " << c;
   for (uint32_t l = 0; l < K; ++l) EXPECT_GT(size[l], 0u) << "cluster " << l << " is empty";
-  const std::vector<uint32_t> pieces = pieces_per_cluster(mesh, labels, K);
+  const std::vector<uint32_t> pieces = test::pieces_per_cluster(mesh, labels, K);
   for (uint32_t l = 0; l < K; ++l) EXPECT_LE(pieces[l], 1u) << "cluster " << l << " is in " << pieces[l] << " pieces";
   EXPECT_TRUE(clusters_connected(mesh, labels, K));
 }

@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,9 @@ template <typename T>
 std::vector<T> to_vector(const LargeArray<T>& a) {
   return std::vector<T>(a.begin(), a.end());
 }
+/// Pieces of every cluster by a plain BFS over same-label edges (labels −1 skipped): the
+/// reference the chunked connectivity code is checked against. O(V + E).
+std::vector<uint32_t> pieces_per_cluster(const MeshView& mesh, std::span<const int32_t> labels, uint32_t K);
 /// A fresh empty directory under the system temp dir, unique per call.
 std::filesystem::path temp_dir(const std::string& tag);
 

@@ -143,6 +143,54 @@ std::vector<Face> triples_around(const MeshView& mesh, std::span<const int32_t> 
   return faces;
 }
 
+std::vector<uint64_t> unjoined_cluster_pairs(const MeshView& mesh, std::span<const int32_t> labels,
+                                             uint32_t cluster_count, std::span<const Face> faces,
+                                             std::span<const uint32_t> vertices, bool all) {
+  std::vector<uint64_t> edges;  // dual edges between clusters, packed min << 32 | max
+  edges.reserve(3 * faces.size());
+  for (const Face& f : faces)
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t a = f[k], b = f[(k + 1) % 3];
+      if (a < cluster_count && b < cluster_count) edges.push_back(uint64_t(std::min(a, b)) << 32 | std::max(a, b));
+    }
+  tbb::parallel_sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  // Blocks of scanned vertices: the chunks' ranges, or runs of the list.
+  constexpr uint32_t kBlock = 4096;
+  const std::vector<VertexRange> ranges = all ? chunk_vertex_blocks(mesh) : std::vector<VertexRange>{};
+  const size_t blocks = all ? ranges.size() : (vertices.size() + kBlock - 1) / kBlock;
+  std::vector<std::vector<uint64_t>> found(blocks);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 1), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t b = r.begin(); b != r.end(); ++b) {
+      std::vector<uint64_t>& out = found[b];
+      auto scan = [&](uint32_t v) {
+        const int32_t a = labels[v];
+        if (a < 0) return;
+        for (uint32_t n : mesh.neighbours(v)) {
+          const int32_t c = labels[n];
+          if (c < 0 || c == a) continue;
+          const uint64_t key = uint64_t(std::min(a, c)) << 32 | uint32_t(std::max(a, c));
+          if (!out.empty() && out.back() == key) continue;  // frontier edges come in runs
+          if (!std::binary_search(edges.begin(), edges.end(), key)) out.push_back(key);
+        }
+      };
+      if (all) {
+        const RangeVisit visit(mesh, "repair", ranges[b], kReadsNeighbours);
+        for (uint32_t v = ranges[b].begin; v < ranges[b].end; ++v) scan(v);
+      } else {
+        for (size_t i = b * kBlock; i < std::min<size_t>(vertices.size(), (b + 1) * size_t(kBlock)); ++i) scan(vertices[i]);
+      }
+      std::sort(out.begin(), out.end());
+      out.erase(std::unique(out.begin(), out.end()), out.end());
+    }
+  });
+  std::vector<uint64_t> pairs;
+  for (const std::vector<uint64_t>& f : found) pairs.insert(pairs.end(), f.begin(), f.end());
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  return pairs;
+}
+
 bool fan_defective(uint32_t x, std::span<const Face> faces, FanScratch& scratch) {
   // One 64-bit key per (face, edge at x): the other end of the edge, the face, and whether the
   // face runs x → other (1) or other → x (0); sorted, a run of keys is one edge at x.

@@ -75,6 +75,17 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels);
 std::vector<Face> triples_around(const MeshView& mesh, std::span<const int32_t> labels,
                                  std::span<const uint32_t> vertices, std::span<const uint8_t> in_set);
 
+/// Pairs of clusters {a, b} (a < b, packed a << 32 | b) joined by an input edge but by no edge
+/// of `faces` (the dual faces, strip faces included; ids ≥ cluster_count are strip vertices):
+/// their frontier meets no third cluster. The dual may stay manifold, yet one input component
+/// gives two output pieces there (a group of clusters ringed by a single one at a thin neck).
+/// Scans the edges of `vertices`, or of every vertex (chunk-parallel) when `all` is set; the
+/// faces must hold every dual face with a corner in a scanned vertex's cluster. Sorted, unique.
+/// O(scanned edges · log D) for D faces; memory O(D). Deterministic.
+std::vector<uint64_t> unjoined_cluster_pairs(const MeshView& mesh, std::span<const int32_t> labels,
+                                             uint32_t cluster_count, std::span<const Face> faces,
+                                             std::span<const uint32_t> vertices, bool all);
+
 /// Scratch of fan_defective (one per thread).
 struct FanScratch {
   std::vector<uint64_t> entries;

@@ -1,7 +1,9 @@
 // Topological repair of a clustering whose dual mesh has defects (non-manifold edges or
 // vertices, isolated vertices, duplicate faces). Defects come from features thinner than a
 // cluster: a cluster enclosed by one other (an island), wrapping a tube or a hole (fewer than
-// three neighbours), or meeting a neighbour along two separate frontiers. The repair splits
+// three neighbours), meeting a neighbour along two separate frontiers, or ringing a group of
+// clusters at a thin neck (a frontier that meets no third cluster: no dual edge, so the output
+// would come apart there although the dual stays manifold). The repair splits
 // such clusters in two and dissolves islands into their surrounding cluster, and keeps the
 // cluster count N exact by merging the lightest adjacent pairs far from any defect (or
 // splitting the heaviest clusters). Constrained clustering then relaxes the touched region.
@@ -52,12 +54,16 @@ struct DefectRepairResult {
   uint64_t splits = 0, merges = 0, islands = 0;
   bool relaxed = false;                 ///< a relaxation of the repaired region was kept
   uint64_t defect_vertices = 0;         ///< dual vertices still on a defect at the end
+  /// Input-adjacent cluster pairs still without a dual edge at the end (the output would come
+  /// apart along their frontier; see dual::unjoined_cluster_pairs).
+  uint64_t unjoined_pairs = 0;
   std::vector<uint8_t> touched;         ///< per cluster: 1 when the repair changed it
   double check_seconds = 0, repair_seconds = 0;
 };
 
 /// The repair loop: finds the clusters on and around dual-mesh defects (same defects as
-/// find_manifold_defects on the built dual, strips included), repairs them (splits in two,
+/// find_manifold_defects on the built dual, strips included, plus input-adjacent cluster pairs
+/// with no dual edge, dual::unjoined_cluster_pairs), repairs them (splits in two,
 /// islands dissolved, the cluster count kept by merging light pairs far from any defect or
 /// splitting heavy clusters), and re-checks only the dual around the vertices whose label
 /// changed, until no defect is left or max_rounds. Then relaxes the repaired clusters

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -116,6 +117,30 @@ TEST(BadOutput, IngestThatFailsLeavesNoValidLookingStore) {
 }
 
 // ---- usage errors --------------------------------------------------------------------------
+
+// ---- a failed guarantee --------------------------------------------------------------------
+
+TEST(FailedCheck, OutputIsWrittenExitCodeIsFourAndStderrNamesTheCheck) {
+  // A torus at N = 21: too few clusters to keep the handle; the last-resort cleanup opens a
+  // hole, so the closed-output, Euler and component checks fail. The mesh is still written
+  // (a batch job may want to look at it), and the job reports failure.
+  if (!test::cli_available()) GTEST_SKIP() << "STREAMCVD_CLI not built";
+  const fs::path dir = test::temp_dir("failed_check");
+  const std::string torus = (dir / "torus.ply").string(), out = (dir / "out.ply").string();
+  const std::string report = (dir / "r.json").string();
+  ASSERT_EQ(run_cli({"generate", "torus", "--rings", "40", "--segments", "80", "-o", torus}).exit_code, 0);
+  CliResult r = run_cli({"remesh", torus, "-o", out, "-n", "21", "--threads", "1", "-q", "--report", report});
+  EXPECT_EQ(r.exit_code, 4) << r.describe();
+  EXPECT_NE(r.err.find("check failed"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the input is closed, the output is not"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::exists(out));
+  CliResult info = run_cli({"info", out});
+  EXPECT_EQ(info.exit_code, 0) << info.describe();
+  std::ifstream json(report);
+  const std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("\"all_ok\": false"), std::string::npos) << "the report must say the checks failed";
+  fs::remove_all(dir);
+}
 
 TEST(BadUsage, MissingArgumentsNeverPrompt) {
   const std::string in = test::data_path("cgal_hand.off");

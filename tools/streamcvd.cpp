@@ -31,6 +31,10 @@ double now_seconds() {
 int main(int argc, char** argv) {
   using namespace streamcvd;
   CLI::App app{"streamcvd: discrete centroidal Voronoi remeshing of large triangle meshes"};
+  app.footer(
+      "Exit codes: 0 success; 1 internal error; 2 bad input or usage; 3 output or work file could not be written\n"
+      "(disk full, permissions); 4 output written but a guarantee check failed (stderr names it, the report's\n"
+      "\"checks\" lists them all); 130/143 interrupted by SIGINT/SIGTERM (no output left behind).");
   app.require_subcommand(1);
   app.set_version_flag("--version", "streamcvd 0.1.0");
   cli::add_info_command(app);

@@ -2,6 +2,7 @@
 
 #include "core/bvh.h"
 #include "core/curvature.h"
+#include "core/dual_topology.h"
 #include "core/metric_field.h"
 #include "core/placement.h"
 #include "core/errors.h"
@@ -117,6 +118,17 @@ int64_t euler_characteristic(const TriangleSoupView& soup) {
   return v - e + int64_t(soup.face_count());
 }
 
+// Vertices the §VI-D strips would add to the dual of `labels` (0 without strips). O(V) for the
+// cluster sizes (chunk-parallel) plus O(boundary).
+uint32_t strip_vertex_count(const MeshView& mesh, std::span<const int32_t> labels, uint32_t K,
+                            const BoundaryLoops& loops, const DualMeshOptions& options) {
+  if (!options.boundary_strips || loops.vertices.empty()) return 0;
+  const std::vector<uint32_t> sizes = dual::cluster_sizes(mesh, labels, K);
+  uint32_t strip_vertices = 0;
+  boundary_strip_faces(mesh, loops, labels, K, sizes, options, strip_vertices);
+  return strip_vertices;
+}
+
 // The V-sized labels for the caller: in RAM (the job's work space ends with the job), or none.
 void hand_over_vertex_labels(bool keep, LargeArray<int32_t>& labels, RemeshResult& result) {
   LargeArray<uint32_t>& components = result.budget.component_of_vertex;
@@ -169,30 +181,34 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   if (uses_quadrics(metric)) items.quadric = vertex_quadrics(mesh, items.origin, storage);
   result.seconds.items = seconds_since(t);
 
-  t = std::chrono::steady_clock::now();
-  result.budget = plan_component_budget(mesh, items, options.vertices, options.small_components, storage);
-  const uint32_t K = result.budget.total_clusters;
-  result.clusters = K;
-  LargeArray<int32_t> labels = initial_sampling(mesh, is_anisotropic(metric) ? sampling_items : items, result.budget,
-                                                options.seed, storage);
-  sampling_items = ItemData{};
-  result.seconds.sampling = seconds_since(t);
-
-  t = std::chrono::steady_clock::now();
-  const double cpu0 = process_cpu_seconds();
+  // Sampling (§VI-G) and clustering (Algorithm 1) at `clusters` clusters spread over the
+  // components by the budget.
   const bool lloyd = options.clustering.algorithm == ClusteringOptions::Algorithm::Lloyd;
-  result.clustering = lloyd ? lloyd_clustering(mesh, items, labels, K, lloyd_options(options.clustering))
-                            : minimize_clustering(mesh, items, labels, K, options.clustering);
-  result.seconds.clustering = seconds_since(t);
-  result.seconds.clustering_cpu = process_cpu_seconds() - cpu0;
+  LargeArray<int32_t> labels;
+  auto sample_and_cluster = [&](uint32_t clusters) {
+    auto t0 = std::chrono::steady_clock::now();
+    result.budget = plan_component_budget(mesh, items, clusters, options.small_components, storage);
+    labels.reset();  // a second pass: the first one's labels go before the new ones come
+    labels = initial_sampling(mesh, is_anisotropic(metric) ? sampling_items : items, result.budget, options.seed, storage);
+    result.seconds.sampling += seconds_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    const double cpu0 = process_cpu_seconds();
+    const uint32_t K = result.budget.total_clusters;
+    result.clustering = lloyd ? lloyd_clustering(mesh, items, labels, K, lloyd_options(options.clustering))
+                              : minimize_clustering(mesh, items, labels, K, options.clustering);
+    result.seconds.clustering += seconds_since(t0);
+    result.seconds.clustering_cpu += process_cpu_seconds() - cpu0;
+  };
+  sample_and_cluster(options.vertices);
+  // Cluster ids: the budget's, and spare ones up to N for the splits that make the count exact.
+  const uint32_t K = std::max(options.vertices, result.budget.total_clusters);
+  result.clusters = K;
 
-  // Compensating merges/splits of the repair stay in components with many clusters.
-  const std::vector<uint8_t> adjustable = clusters_in_large_components(labels, result.budget, K, 64);
   const BoundaryLoops boundary_loops = find_boundary_loops(mesh);
   DualMeshOptions dual_options;
   dual_options.boundary_strips = options.boundary_strips;
   // Holes whose loop is shorter than ~2 output edges close instead of getting sliver strips.
-  dual_options.close_hole_perimeter = 2.0 * typical_dual_edge(items.total_area, K);
+  dual_options.close_hole_perimeter = 2.0 * typical_dual_edge(items.total_area, options.vertices);
   // Repair the clustering around dual-mesh defects (labels only; re-checks just the changed
   // region each round), then build the dual once and check it as a whole.
   DefectRepairOptions repair_options;
@@ -200,16 +216,41 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   repair_options.dual = dual_options;
   repair_options.clustering = options.clustering;
   repair_options.relax = !lloyd;  // a Lloyd run's report stays pure Lloyd
-  DefectRepairResult repair =
-      repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options, result.clustering, storage);
-  result.repair_rounds_used = repair.rounds;
-  result.repaired_clusters = repair.repaired_clusters;
-  result.repair_splits = repair.splits;
-  result.repair_merges = repair.merges;
-  result.repair_islands = repair.islands;
-  result.repair_relaxed = repair.relaxed;
-  result.seconds.repair = repair.repair_seconds;
-  result.seconds.dual = repair.check_seconds;
+  auto repair_clustering = [&](uint32_t target_vertices) {
+    repair_options.target_vertices = target_vertices;
+    // Compensating merges/splits of the repair stay in components with many clusters.
+    const std::vector<uint8_t> adjustable = clusters_in_large_components(labels, result.budget, K, 64);
+    DefectRepairResult r = repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options,
+                                               result.clustering, storage);
+    result.seconds.repair += r.repair_seconds;
+    result.seconds.dual += r.check_seconds;
+    result.repair_rounds_used += r.rounds;
+    result.repaired_clusters += r.repaired_clusters;
+    result.repair_splits += r.splits;
+    result.repair_merges += r.merges;
+    result.repair_islands += r.islands;
+    result.repair_relaxed = r.relaxed;
+    return r;
+  };
+  // Exactly N output vertices, strip vertices included. With S strip vertices on the dual of
+  // the clustering, a few (S ≤ N/20) are made up by merging clusters off the boundary once the
+  // defects are repaired (the repair's splits add some strip vertices too, also made up); more,
+  // by clustering again with N − S clusters, since one merge per strip vertex would coarsen
+  // the interior in patches. Strips needing half of N or more would leave the interior too
+  // coarse: N is then not met, and the note says why.
+  const uint32_t N = options.vertices;
+  const uint32_t S = strip_vertex_count(mesh, labels, K, boundary_loops, dual_options);
+  uint32_t target = N;
+  if (S >= N / 2) {
+    target = 0;
+    result.budget.note = "the boundary strips need " + std::to_string(S) + " vertices: N = " + std::to_string(N) +
+                         " cannot be met without coarsening the interior below half the budget (use a larger N or "
+                         "--no-boundary-strips)";
+  } else if (S > N / 20) {
+    sample_and_cluster(N - S);
+  }
+  const DefectRepairResult repair = repair_clustering(target);
+  sampling_items = ItemData{};
   t = std::chrono::steady_clock::now();
   // The sites of the final clustering under its metric: centroid, anisotropic centroid, or
   // QEM point. Computed once, for the dual and for the final placement below.
@@ -218,6 +259,10 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   result.final_energy = state_energy(items, state);
   std::vector<double> z = cluster_sites(items, state);
   DualMesh dual = build_dual_mesh(mesh, labels, K, z, dual_options, &boundary_loops);
+  result.vertex_shortfall = int64_t(N) - int64_t(dual.mesh.vertex_count());
+  if (result.vertex_shortfall != 0 && result.budget.note.empty())
+    result.budget.note = "the clusters and the " + std::to_string(dual.boundary_vertices_added) +
+                         " boundary-strip vertices could not be brought to N exactly within the repair rounds";
   std::vector<uint32_t> defects = find_manifold_defects(dual.mesh.view());
   result.seconds.dual += seconds_since(t);
   t = std::chrono::steady_clock::now();

@@ -56,7 +56,9 @@ struct StageTimes {
 struct RemeshResult {
   MeshBuffers mesh;                  ///< output vertices (cluster representatives) and triangles
   LargeArray<int32_t> cluster_of_vertex;  ///< final label of each input vertex (in RAM; empty unless keep_vertex_labels)
-  uint32_t clusters = 0;             ///< clusters used (budget after components)
+  /// Cluster ids: the budget's (after components), plus spare ones up to N that splits making
+  /// the vertex count exact may take. The output has one vertex per non-empty cluster.
+  uint32_t clusters = 0;
   ComponentBudget budget;
   ClusteringReport clustering;
   StageTimes seconds;
@@ -65,6 +67,9 @@ struct RemeshResult {
   uint64_t repaired_clusters = 0;    ///< clusters touched by the repair
   uint64_t repair_splits = 0, repair_merges = 0, repair_islands = 0;
   bool repair_relaxed = false;
+  /// N minus the dual's vertices after the repair (clusters + strip vertices): 0 when the
+  /// output has exactly N vertices; < 0 when the budget could not shrink that far.
+  int64_t vertex_shortfall = 0;
   uint64_t sites_reverted = 0;       ///< Q metrics: QEM sites of needle triangles moved back to the centroid       ///< the repaired region was relaxed without new defects
   uint64_t defect_vertices = 0;      ///< output vertices still on a defect at the end (0 = valid)
   uint64_t defect_faces_removed = 0;   ///< faces deleted by the last-resort cleanup (holes opened)

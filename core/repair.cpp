@@ -238,6 +238,8 @@ class DefectTracker {
 
   uint64_t defect_vertices() const { return defect_vertices_; }
   uint64_t unjoined_pairs() const { return unjoined_pairs_; }
+  /// Strip vertices the dual of the last checked labels adds (0 without strips).
+  uint32_t strip_vertices() const { return strip_vertices_; }
 
  private:
   std::vector<int32_t> check(std::span<const int32_t> labels, bool all) {
@@ -276,6 +278,7 @@ class DefectTracker {
       }
     defective_list_ = std::move(still);
     defect_vertices_ = 0;
+    strip_vertices_ = strip_vertices;
     std::vector<uint8_t> strip_bad(strip_vertices, 0);
     for (const dual::FanVerdict& v : verdicts) {
       if (v.vertex < K_) has_faces_[v.vertex] = 1;
@@ -340,6 +343,7 @@ class DefectTracker {
   std::vector<std::pair<uint32_t, uint32_t>> loop_of_vertex_;  // {boundary loop vertex, loop}
   uint64_t defect_vertices_ = 0;
   uint64_t unjoined_pairs_ = 0;
+  uint32_t strip_vertices_ = 0;
 };
 
 // One repair round at a time with state that persists across rounds: per-cluster weights and
@@ -357,9 +361,12 @@ class ClusterRepair {
     labels_.take_stale();
   }
 
-  // Splits and dissolves the clusters of `defect_clusters` (sorted, unique), keeping the
-  // cluster count with compensating merges or splits. Returns the clusters changed.
-  std::vector<int32_t> round(std::span<const int32_t> defect_clusters, RepairRoundStats& stats);
+  // Splits and dissolves the clusters of `defect_clusters` (sorted, unique), and changes the
+  // number of non-empty clusters by `count_change` with compensating merges or splits (0: the
+  // count stays). With `keep_strips` those compensations only touch clusters off the boundary,
+  // so the strip vertices of the dual stay as they are. Returns the clusters changed.
+  std::vector<int32_t> round(std::span<const int32_t> defect_clusters, int64_t count_change, bool keep_strips,
+                             RepairRoundStats& stats);
 
  private:
   // Weights are sums over the members in ascending vertex order: the same bits as a pass over
@@ -390,6 +397,24 @@ class ClusterRepair {
     if (fresh) labels_.index().members(c, it->second);
     return it->second;
   }
+  // Clusters next to c under the current labels (c's members from the round's start), sorted.
+  void neighbour_clusters(int32_t c, std::vector<int32_t>& out) {
+    out.clear();
+    for (uint32_t v : members_of(c))
+      for (uint32_t n : mesh_.neighbours(v))
+        if (labels_[n] >= 0 && labels_[n] != c) out.push_back(labels_[n]);
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+  }
+  static size_t common_count(std::span<const int32_t> x, std::span<const int32_t> y) {
+    size_t n = 0;
+    for (size_t i = 0, j = 0; i < x.size() && j < y.size();) {
+      if (x[i] == y[j]) ++n, ++i, ++j;
+      else if (x[i] < y[j]) ++i;
+      else ++j;
+    }
+    return n;
+  }
   uint32_t size_of(int32_t c) {
     auto it = round_members_.find(c);
     return it != round_members_.end() ? uint32_t(it->second.size()) : labels_.index().size(c);
@@ -408,7 +433,8 @@ class ClusterRepair {
   SplitScratch scratch_;
 };
 
-std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_clusters, RepairRoundStats& stats) {
+std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_clusters, int64_t count_change,
+                                          bool keep_strips, RepairRoundStats& stats) {
   refresh(labels_.take_stale());
   round_members_.clear();
   for (int32_t c : defect_clusters)
@@ -445,7 +471,18 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
       to_split.push_back(c);
     }
   }
-  // Compensate so that the number of non-empty clusters stays K.
+  // More clusters asked for: empty ids become free ones, which the heaviest clusters take below.
+  {
+    const size_t freed = free_ids.size();  // the dissolved islands' ids
+    for (uint32_t c = 0; c < K_ && count_change > 0 && int64_t(free_ids.size() - freed) < count_change; ++c)
+      if (labels_.index().size(c) == 0 && std::find(free_ids.begin(), free_ids.begin() + std::ptrdiff_t(freed), int32_t(c)) ==
+                                              free_ids.begin() + std::ptrdiff_t(freed))
+        free_ids.push_back(int32_t(c));
+  }
+  // Fewer clusters asked for: that many freed ids stay unused.
+  const size_t keep_free = count_change < 0 ? size_t(-count_change) : 0;
+  auto compensable = [&](int32_t c) { return !near_.contains(c) && adjustable_[c] && !(keep_strips && touches_boundary_[c]); };
+  // Compensate so that the number of non-empty clusters changes by count_change.
   // A defective cluster is cut in two (measured: cutting in three fixed no more dragon defects
   // and lost genus on fertility at N = 200 more often).
   constexpr size_t kParts = 2;
@@ -454,15 +491,15 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     for (int32_t c : to_split) n += std::min<size_t>(kParts, size_of(c)) - 1;
     return n;
   };
-  if (ids_needed() > free_ids.size()) {
+  if (ids_needed() + keep_free > free_ids.size()) {
     // Merge light adjacent pairs away from every defect: the lightest eligible clusters (a few
     // times as many as needed, found in O(K)) propose their lightest neighbour; proposals are
     // taken lightest pair first. Only the candidates' own vertices are scanned.
-    const size_t needed = ids_needed() - free_ids.size();
+    const size_t needed = ids_needed() + keep_free - free_ids.size();
     std::vector<int32_t> candidates;
     const std::span<const uint32_t> size = labels_.index().sizes();
     for (uint32_t c = 0; c < K_; ++c)
-      if (!near_.contains(int32_t(c)) && adjustable_[c] && size[c] > 0) candidates.push_back(int32_t(c));
+      if (compensable(int32_t(c)) && size[c] > 0) candidates.push_back(int32_t(c));
     const size_t keep = std::min(candidates.size(), 8 * needed + 16);
     auto lighter = [&](int32_t x, int32_t y) { return weight_[x] != weight_[y] ? weight_[x] < weight_[y] : x < y; };
     std::nth_element(candidates.begin(), candidates.begin() + std::ptrdiff_t(keep), candidates.end(), lighter);
@@ -471,7 +508,7 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
       for (uint32_t v : members_of(a))
         for (uint32_t n : mesh_.neighbours(v)) {
           const int32_t b = labels_[n];
-          if (b < 0 || b == a || near_.contains(b) || !adjustable_[b]) continue;
+          if (b < 0 || b == a || !compensable(b)) continue;
           if (partner_[a] < 0 || lighter(b, partner_[a])) partner_[a] = b;
         }
     std::vector<int32_t> proposers;
@@ -480,12 +517,24 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     auto pair_weight = [&](int32_t a) { return weight_[a] + weight_[partner_[a]]; };
     std::stable_sort(proposers.begin(), proposers.end(),
                      [&](int32_t x, int32_t y) { return pair_weight(x) < pair_weight(y); });
+    std::vector<int32_t> around_a, around_b;
     for (int32_t a : proposers) {
-      if (ids_needed() <= free_ids.size()) break;
+      if (ids_needed() + keep_free <= free_ids.size()) break;
       const int32_t b = partner_[a];
       if (used_.contains(a) || used_.contains(b)) continue;
+      // A merge collapses the dual edge a–b. Off the boundary it keeps the dual manifold only
+      // when a and b have exactly two common neighbours, the clusters at the ends of their
+      // frontier (the link condition of an edge collapse); the neighbours of a merged pair
+      // wait for the next round, so that two merges never share a link.
+      neighbour_clusters(a, around_a);
+      neighbour_clusters(b, around_b);
+      if (!touches_boundary_[a] && !touches_boundary_[b] && common_count(around_a, around_b) != 2) continue;
       used_.insert(a);
       used_.insert(b);
+      if (keep_free > 0) {  // count rounds: many merges at once, kept apart
+        for (int32_t n : around_a) used_.insert(n);
+        for (int32_t n : around_b) used_.insert(n);
+      }
       for (uint32_t v : members_of(b)) labels_.set(v, a);
       free_ids.push_back(b);
       touched.push_back(a);
@@ -493,7 +542,7 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     }
     for (int32_t a : candidates) partner_[a] = -1;
     used_.clear();
-    while (!to_split.empty() && ids_needed() > free_ids.size()) to_split.pop_back();
+    while (!to_split.empty() && ids_needed() + keep_free > free_ids.size()) to_split.pop_back();
   }
   auto split = [&](int32_t c, std::span<const int32_t> ids) {
     std::span<const uint32_t> members = members_of(c);
@@ -513,14 +562,14 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     for (uint32_t k = made; k < parts - 1; ++k) free_ids.push_back(ids[k]);
     ++stats.splits;
   }
-  // Ids still free (more islands than splits): split the heaviest clusters.
-  if (!free_ids.empty()) {
+  // Ids still free (more islands than splits, or more clusters asked for): split the heaviest.
+  if (free_ids.size() > keep_free) {
     std::vector<int32_t> order(K_);
     std::iota(order.begin(), order.end(), 0);
     std::stable_sort(order.begin(), order.end(), [&](int32_t x, int32_t y) { return weight_[x] > weight_[y]; });
     for (int32_t c : order) {
-      if (free_ids.empty()) break;
-      if (near_.contains(c) || !adjustable_[c]) continue;
+      if (free_ids.size() <= keep_free) break;
+      if (!compensable(c)) continue;
       // Only clusters untouched this round (whose members are the round's first) are split here;
       // a cluster merged away has none left.
       if (std::find(touched.begin(), touched.end(), c) != touched.end()) continue;
@@ -553,10 +602,20 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   LabelEditor editor(mesh, labels, K, storage);
   DefectTracker tracker(mesh, loops, K, options.dual, editor.index());
   std::vector<int32_t> bad = tracker.check_all(labels);
+  // Output vertices wanted minus those the dual of the current labels has (non-empty clusters
+  // plus strip vertices), when a vertex target is set; O(K).
+  auto count_change = [&]() -> int64_t {
+    if (options.target_vertices == 0) return 0;
+    const std::span<const uint32_t> size = editor.index().sizes();
+    const int64_t used = std::count_if(size.begin(), size.end(), [](uint32_t n) { return n > 0; });
+    return int64_t(options.target_vertices) - used - int64_t(tracker.strip_vertices());
+  };
+  int64_t change = count_change();
   result.check_seconds += seconds_since(t);
-  if (bad.empty()) {
+  if (bad.empty() && change == 0) {
     result.defect_vertices = tracker.defect_vertices();
     result.unjoined_pairs = tracker.unjoined_pairs();
+    result.strip_vertices = tracker.strip_vertices();
     return result;
   }
   t = std::chrono::steady_clock::now();
@@ -566,7 +625,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   // final relaxation leaves alone (relaxing it tends to rebuild the thin-feature clusters).
   std::vector<uint32_t> near_defect, members;
   size_t near_unique = 0;
-  while (!bad.empty() && result.rounds < options.max_rounds) {
+  while ((!bad.empty() || change != 0) && result.rounds < options.max_rounds) {
     t = std::chrono::steady_clock::now();
     editor.index().compact();
     for (int32_t c : bad) {
@@ -582,7 +641,10 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
       near_unique = near_defect.size();
     }
     RepairRoundStats stats;
-    const std::vector<int32_t> touched = repair.round(bad, stats);
+    // The count changes only in rounds without defects: merges next to a defect's splits made
+    // the two chase each other (dragon: 36 rounds instead of 12).
+    const int64_t asked = bad.empty() ? change : 0;
+    const std::vector<int32_t> touched = repair.round(bad, asked, options.target_vertices != 0, stats);
     for (int32_t c : touched) result.touched[c] = 1;
     result.repaired_clusters += touched.size();
     result.splits += stats.splits;
@@ -592,8 +654,14 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     result.repair_seconds += seconds_since(t);
     t = std::chrono::steady_clock::now();
     bad = tracker.check_changes(labels, editor.take_log());
+    change = count_change();
     result.check_seconds += seconds_since(t);
+    // A count round that found nothing to merge or split: N cannot be reached (e.g. the strips
+    // alone need more than N vertices); more rounds would find nothing either.
+    if (asked != 0 && stats.merges + stats.splits + stats.dissolved_islands == 0) break;
   }
+  result.vertex_shortfall = change;
+  result.strip_vertices = tracker.strip_vertices();
   result.defect_vertices = tracker.defect_vertices();
   result.unjoined_pairs = tracker.unjoined_pairs();
   if (!bad.empty() || result.rounds == 0 || !options.relax) return result;
@@ -646,7 +714,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   before.reset();
   for (const auto& m : moved)
     for (const LabelChange& ch : m) editor.note(ch.vertex, ch.old_label);
-  if (tracker.check_changes(labels, editor.take_log()).empty()) {
+  if (tracker.check_changes(labels, editor.take_log()).empty() && count_change() == change) {
     result.relaxed = true;
   } else {
     for (const auto& m : moved)
@@ -655,6 +723,8 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   }
   result.defect_vertices = tracker.defect_vertices();
   result.unjoined_pairs = tracker.unjoined_pairs();
+  result.vertex_shortfall = count_change();
+  result.strip_vertices = tracker.strip_vertices();
   result.repair_seconds += seconds_since(t);
   return result;
 }

@@ -43,6 +43,10 @@ struct DefectRepairOptions {
   uint32_t max_rounds = 40;     ///< repair rounds at most (RemeshOptions::repair_rounds)
   DualMeshOptions dual;         ///< the dual as it will be built (strips, closed holes)
   bool relax = true;            ///< relax the repaired clustering once at the end (kept only if valid)
+  /// Output vertices wanted (non-empty clusters + strip vertices of the dual); 0 = keep the
+  /// number of non-empty clusters. Reached by merging or splitting clusters off the boundary
+  /// (so the strips stay), in the same rounds as the defect repair.
+  uint32_t target_vertices = 0;
   /// Energy and loop settings of the relaxation (metric, QEM threshold, threads, ...); its
   /// on_loop and near_convergence are not used.
   ClusteringOptions clustering;
@@ -57,6 +61,9 @@ struct DefectRepairResult {
   /// Input-adjacent cluster pairs still without a dual edge at the end (the output would come
   /// apart along their frontier; see dual::unjoined_cluster_pairs).
   uint64_t unjoined_pairs = 0;
+  /// target_vertices minus the dual's vertex count at the end (0 when met or no target).
+  int64_t vertex_shortfall = 0;
+  uint32_t strip_vertices = 0;  ///< strip vertices of the dual of the final labels
   std::vector<uint8_t> touched;         ///< per cluster: 1 when the repair changed it
   double check_seconds = 0, repair_seconds = 0;
 };

@@ -406,7 +406,7 @@ TEST(BadInput, StripAndFaceElementErrorsSayWhereAndWhat) {
   const std::vector<Case> cases = {
       {"ascii.ply", ply_list_header("ascii", "tristrips", 1) + kAsciiTriangle + "5 0 1 2 -1 3\n",
        {"line 13: tristrips 0: item 4: uses vertex 3 of 3"}},
-      {"binary.ply", binary, {"byte " + std::to_string(index_byte) + ": tristrips 0: uses vertex 7 of 3"}},
+      {"binary.ply", binary, {"byte " + std::to_string(index_byte) + ": tristrips 0: item 3: uses vertex 7 of 3"}},
       {"polygon.ply", ply_list_header("ascii", "polygon", 1) + kAsciiTriangle + "3 0 1 2\n",
        {"line 9: no face element", "vertex (3), polygon (1)"}},
       {"cut.ply.zst", zstd_of(dir, block.substr(0, block.size() - 13 * 400 - 5)),

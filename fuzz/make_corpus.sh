@@ -49,6 +49,12 @@ o='\x00\x00\x00\x00' l='\x00\x00\x80\x3f' q='\x07\x00'
 printf "$o$o$o$q$l$o$o$q$o$l$o$q$l$l$o$q" >> "$work/strips_le.ply"
 printf '\x06\x00\x00\x00\x00\x00\x00\x00\x01\x00\x00\x00\x02\x00\x00\x00\xff\xff\xff\xff\x01\x00\x00\x00\x03\x00\x00\x00' >> "$work/strips_le.ply"
 seed ply strips_le "$work/strips_le.ply"
+# Big endian with ushort indices: the -1 restart is stored as ffff.
+printf 'ply\nformat binary_big_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement tristrips 1\nproperty list uchar ushort vertex_indices\nend_header\n' > "$work/strips_be.ply"
+o='\x00\x00\x00\x00' l='\x3f\x80\x00\x00'
+printf "$o$o$o$l$o$o$o$l$o$l$l$o" >> "$work/strips_be.ply"
+printf '\x07\x00\x00\x00\x01\x00\x02\xff\xff\x00\x01\x00\x03\x00\x02' >> "$work/strips_be.ply"
+seed ply strips_be "$work/strips_be.ply"
 printf '# c\nv 0 0 0\nv 1 0 0 1\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\ng x\nf 1/1/1 2/1/1 3/1/1\nf -4//1 -2//1 -1//1\nf 1 2 \\\n 3 4\n' > "$work/c.obj"
 seed obj corners "$work/c.obj"
 printf 'v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nf 1 2 3\n' > "$work/colours.obj"

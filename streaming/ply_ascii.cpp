@@ -195,14 +195,15 @@ struct AsciiReader {
     return q;
   }
 
-  const char* strip_list(const char* q, StripDecoder& strip) {
+  const char* strip_list(const char* q, Scalar type, StripDecoder& strip) {
     int64_t n;
     q = integer(q, n);
     if (n < 0) fail("negative list length");
+    const int64_t restart = strip_restart_alias(type, nv);  // "255" in a uchar list, as in binary
     for (int64_t j = 0; j < n; ++j) {
       int64_t v;
       q = integer(q, v);
-      if (is_strip_restart(v)) strip.restart();
+      if (v == -1 || v == restart) strip.restart();
       else if (v < 0 || v >= int64_t(nv)) fail("item " + std::to_string(j) + ": " + index_problem(v, nv));
       else strip.add(uint32_t(v));
     }
@@ -257,7 +258,7 @@ struct AsciiReader {
           }
           case Action::Attribute: q = value(q, prop.type, row[prop.slot]); break;
           case Action::Polygon: q = polygon(q); break;
-          case Action::Strip: q = strip_list(q, strip); break;
+          case Action::Strip: q = strip_list(q, prop.type, strip); break;
           case Action::Scalar: {
             double d;
             q = real(q, d);

@@ -126,6 +126,11 @@ struct BinaryReader {
   [[gnu::noinline, noreturn]] void bad_index(const Element& e, uint64_t record, int64_t v, uint64_t offset) const {
     fail_at(offset, e.name + " " + std::to_string(record) + ": " + index_problem(v, nv));
   }
+  // Names the item too, as the ascii reader does: a strip record is often one huge list.
+  [[gnu::noinline, noreturn]] void bad_strip_index(const Element& e, uint64_t record, uint64_t item, int64_t v,
+                                                   uint64_t offset) const {
+    fail_at(offset, e.name + " " + std::to_string(record) + ": item " + std::to_string(item) + ": " + index_problem(v, nv));
+  }
   void skip_bytes(uint64_t n, const Element& e, uint64_t i) {
     while (n > 0) {
       need(1, e, i);
@@ -298,13 +303,14 @@ struct BinaryReader {
         }
         const uint64_t n = list_count(p, e, r, start);
         const size_t isz = scalar_size(p.type);
+        const int64_t restart = strip_restart_alias(p.type, nv);
         for (uint64_t j = 0; j < n;) {  // windows of 4096 indices, as for faces
           const uint64_t m = std::min<uint64_t>(n - j, 4096);
           need(m * isz, e, r);
           for (uint64_t q = 0; q < m; ++q) {
             const int64_t v = load_int(cur.data() + q * isz, p.type, swap);
-            if (is_strip_restart(v)) strip.restart();
-            else if (v < 0 || v >= int64_t(nv)) bad_index(e, r, v, cur.offset() + q * isz);
+            if (v == -1 || v == restart) strip.restart();
+            else if (v < 0 || v >= int64_t(nv)) bad_strip_index(e, r, j + q, v, cur.offset() + q * isz);
             else strip.add(uint32_t(v));
           }
           cur.advance(m * isz);

@@ -76,9 +76,13 @@ void read_ascii_body(InputStream& in, const Header& h, BlockEmitter& out);
 /// Why corner index `v` is not a vertex id below `nv` (the body readers add the position).
 std::string index_problem(int64_t v, uint32_t nv);
 
-/// A strip index that restarts the strip: -1, or -1 stored as a uint32 (0xFFFFFFFF is never a
-/// vertex id: ids are below 2^32-1).
-inline bool is_strip_restart(int64_t v) { return v == -1 || v == 0xFFFFFFFF; }
+/// The value besides -1 that restarts a strip of indices of type `t`: -1 written into an unsigned
+/// type reads as its all-ones value (255, 65535, 2^32-1), which restarts the strip unless it is a
+/// vertex id (below nv, so no valid file changes meaning); signed types only have -1 itself.
+inline int64_t strip_restart_alias(Scalar t, uint32_t nv) {
+  const int64_t ones = t == Scalar::U8 ? 0xFF : t == Scalar::U16 ? 0xFFFF : t == Scalar::U32 ? 0xFFFFFFFF : -1;
+  return ones >= int64_t(nv) ? ones : -1;
+}
 
 /// Decodes the index lists of a `tristrips` element: -1 restarts the strip (so does the end of a
 /// list); within a strip s, triangle i is (s[i], s[i+1], s[i+2]) for even i and

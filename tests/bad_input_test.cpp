@@ -183,6 +183,15 @@ const std::vector<BadInput>& bad_inputs() {
       {"PlyStripIndexOutOfRangeBinary", "m.ply", [](auto&) { return binary_strips({0, 1, 2, 7}); }},
       {"PlyStripNegativeIndexZstd", "m.ply.zst", [](auto& d) { return zstd_of(d, binary_strips({0, 1, -3})); }},
       {"PlyStripsAllDegenerate", "m.ply", [](auto&) { return binary_strips({0, 0, 1, 1}); }},
+      {"PlyStripListTruncatedAscii", "m.ply",
+       [](auto&) { return ply_list_header("ascii", "tristrips", 1) + kAsciiTriangle + "7 0 1 2 -1 0\n"; }},
+      {"PlyStripListTruncatedBinary", "m.ply",
+       [](auto&) {
+         const std::string s = binary_strips({0, 1, 2, -1, 0, 2, 1});
+         return s.substr(0, s.size() - 6);  // ends inside the list's 6th index
+       }},
+      {"PlyRangeGridOnly", "m.ply",
+       [](auto&) { return ply_list_header("ascii", "range_grid", 4, "list uchar int vertex_indices") + kAsciiTriangle + "1 0\n0\n1 1\n1 2\n"; }},
       {"PlyTruncatedBinaryFaceBlockZstd", "m.ply.zst",
        [](auto& d) {
          // 1000 triangles in the fast path's layout, cut inside the run: only the reader finds it.
@@ -401,12 +410,25 @@ TEST(BadInput, StripAndFaceElementErrorsSayWhereAndWhat) {
   };
   const std::string binary = binary_strips({0, 1, 2, 7});
   const size_t index_byte = binary.find("end_header\n") + 11 + 36 + 4 + 3 * 4;
+  const std::string strip_full = binary_strips({0, 1, 2, -1, 0, 2, 1});
+  const std::string strip_cut = strip_full.substr(0, strip_full.size() - 6);  // inside the 6th index
   std::vector<std::vector<int32_t>> faces(1000, {0, 1, 2});
   const std::string block = binary_ply({0, 0, 0, 1, 0, 0, 0, 1, 0}, faces);
   const std::vector<Case> cases = {
       {"ascii.ply", ply_list_header("ascii", "tristrips", 1) + kAsciiTriangle + "5 0 1 2 -1 3\n",
        {"line 13: tristrips 0: item 4: uses vertex 3 of 3"}},
-      {"binary.ply", binary, {"byte " + std::to_string(index_byte) + ": tristrips 0: uses vertex 7 of 3"}},
+      {"binary.ply", binary, {"byte " + std::to_string(index_byte) + ": tristrips 0: item 3: uses vertex 7 of 3"}},
+      {"strip_cut.ply", strip_cut,
+       {"byte " + std::to_string(strip_cut.size()) + ": unexpected end of file in tristrips 0 of 1"}},
+      {"strip_cut_ascii.ply", ply_list_header("ascii", "tristrips", 1) + kAsciiTriangle + "7 0 1 2 -1 0\n",
+       {"line 13: tristrips 0: too few values on the line"}},
+      {"range_grid.ply",
+       ply_list_header("ascii", "range_grid", 4, "list uchar int vertex_indices") + kAsciiTriangle + "1 0\n0\n1 1\n1 2\n",
+       {"line 9: no face element", "vertex (3), range_grid (4)", "'face' or 'tristrips'"}},
+      {"points.ply",
+       "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n" +
+           kAsciiTriangle,
+       {"no face element", "elements vertex (3);"}},
       {"polygon.ply", ply_list_header("ascii", "polygon", 1) + kAsciiTriangle + "3 0 1 2\n",
        {"line 9: no face element", "vertex (3), polygon (1)"}},
       {"cut.ply.zst", zstd_of(dir, block.substr(0, block.size() - 13 * 400 - 5)),

@@ -88,7 +88,11 @@ const std::vector<Triangle> kStripTriangles = {{0, 1, 2}, {2, 1, 3}, {4, 5, 6}, 
 
 TEST(PlyStrips, HandWrittenStripsGiveTheExactTriangles) {
   const fs::path dir = test::temp_dir("ply_strips");
-  const std::vector<std::pair<std::string, std::string>> types = {{"int", "int"}, {"int", "uchar"}, {"uint", "uint"}};
+  // (index, count) types: every integer type on both sides. A -1 in an unsigned list is stored
+  // as its all-ones value (255, 65535, 2^32-1), which restarts the strip as -1 does.
+  const std::vector<std::pair<std::string, std::string>> types = {
+      {"int", "int"},   {"int", "uchar"},    {"uint", "uint"},   {"uchar", "uchar"},
+      {"char", "short"}, {"ushort", "ushort"}, {"short", "uint"}, {"uint", "char"}};
   for (Enc enc : kAllEncodings)
     for (const auto& [index, count] : types) {
       SCOPED_TRACE(std::string(enc_name(enc)) + " " + count + " " + index);
@@ -117,7 +121,7 @@ TEST(PlyStrips, ErrorsNameTheLineOrByteOfTheIndex) {
     const std::string path = write_file(dir, "b.ply", bytes);
     // The index's own byte: header, 8 vertices of 12 bytes, the int count, 3 indices before it.
     const size_t at = bytes.find("end_header\n") + 11 + 8 * 12 + 4 + 3 * 4;
-    EXPECT_EQ(error_of([&] { read_mesh(path); }), path + ": byte " + std::to_string(at) + ": tristrips 0: uses vertex 8 of 8");
+    EXPECT_EQ(error_of([&] { read_mesh(path); }), path + ": byte " + std::to_string(at) + ": tristrips 0: item 3: uses vertex 8 of 8");
   }
   const std::string negative = write_file(dir, "n.ply", build_ply(Enc::Le, {xyz_vertices(kEight), strips_element({{0, 1, -2}})}));
   EXPECT_NE(error_of([&] { read_mesh(negative); }).find("negative vertex index -2"), std::string::npos);
@@ -127,6 +131,22 @@ TEST(PlyStrips, ErrorsNameTheLineOrByteOfTheIndex) {
   // All strip triangles degenerate: no faces at all.
   const std::string flat = write_file(dir, "f.ply", build_ply(Enc::Ascii, {xyz_vertices(kEight), strips_element({{0, 0, 1, 1}})}));
   EXPECT_EQ(error_of([&] { read_mesh(flat); }), flat + ": no faces (8 vertices and no triangle; 2 degenerate strip triangles dropped)");
+  fs::remove_all(dir);
+}
+
+TEST(PlyStrips, AllOnesIndexIsAVertexWhenTheMeshHasThatMany) {
+  // 256 vertices: uchar 255 is vertex 255, not a restart, so no file with valid indices changes
+  // meaning. With 8 vertices the same byte (or "255" in ascii) restarts the strip.
+  const fs::path dir = test::temp_dir("ply_strips_ones");
+  std::vector<float> fan(3 * 256);
+  for (int v = 0; v < 256; ++v) fan[3 * v] = float(v % 16), fan[3 * v + 1] = float(v / 16);
+  for (Enc enc : kAllEncodings) {
+    SCOPED_TRACE(enc_name(enc));
+    const std::string many = write_file(dir, "m.ply", build_ply(enc, {xyz_vertices(fan), strips_element({{0, 1, 255, 16}}, "uchar", "uchar")}));
+    EXPECT_EQ(triangles_of(read_mesh(many).triangles), (std::vector<Triangle>{{0, 1, 255}, {255, 1, 16}}));
+    const std::string few = write_file(dir, "f.ply", build_ply(enc, {xyz_vertices(kEight), strips_element({{0, 1, 2, 255, 3, 4, 5}}, "uchar", "uchar")}));
+    EXPECT_EQ(triangles_of(read_mesh(few).triangles), (std::vector<Triangle>{{0, 1, 2}, {3, 4, 5}}));
+  }
   fs::remove_all(dir);
 }
 

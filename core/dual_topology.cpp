@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <iterator>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -155,33 +156,37 @@ std::vector<uint64_t> unjoined_cluster_pairs(const MeshView& mesh, std::span<con
     }
   tbb::parallel_sort(edges.begin(), edges.end());
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
-  // Blocks of scanned vertices: the chunks' ranges, or runs of the list.
+  // Blocks of scanned vertices: the chunks' ranges, or runs of the list. Each block collects
+  // the label pairs of its frontier edges (a pair repeats along a whole frontier: sorted and
+  // made unique first), then keeps those missing from the sorted dual edges by one merge walk.
   constexpr uint32_t kBlock = 4096;
   const std::vector<VertexRange> ranges = all ? chunk_vertex_blocks(mesh) : std::vector<VertexRange>{};
   const size_t blocks = all ? ranges.size() : (vertices.size() + kBlock - 1) / kBlock;
   std::vector<std::vector<uint64_t>> found(blocks);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 1), [&](const tbb::blocked_range<size_t>& r) {
+    std::vector<uint64_t> keys;
     for (size_t b = r.begin(); b != r.end(); ++b) {
-      std::vector<uint64_t>& out = found[b];
-      auto scan = [&](uint32_t v) {
+      keys.clear();
+      // every_edge: the vertex's edges to any neighbour (a list); else to later vertices only,
+      // as a scan of every vertex sees each edge from both ends.
+      auto scan = [&](uint32_t v, bool every_edge) {
         const int32_t a = labels[v];
         if (a < 0) return;
         for (uint32_t n : mesh.neighbours(v)) {
           const int32_t c = labels[n];
-          if (c < 0 || c == a) continue;
-          const uint64_t key = uint64_t(std::min(a, c)) << 32 | uint32_t(std::max(a, c));
-          if (!out.empty() && out.back() == key) continue;  // frontier edges come in runs
-          if (!std::binary_search(edges.begin(), edges.end(), key)) out.push_back(key);
+          if (c < 0 || c == a || (!every_edge && n < v)) continue;
+          keys.push_back(uint64_t(std::min(a, c)) << 32 | uint32_t(std::max(a, c)));
         }
       };
       if (all) {
         const RangeVisit visit(mesh, "repair", ranges[b], kReadsNeighbours);
-        for (uint32_t v = ranges[b].begin; v < ranges[b].end; ++v) scan(v);
+        for (uint32_t v = ranges[b].begin; v < ranges[b].end; ++v) scan(v, false);
       } else {
-        for (size_t i = b * kBlock; i < std::min<size_t>(vertices.size(), (b + 1) * size_t(kBlock)); ++i) scan(vertices[i]);
+        for (size_t i = b * kBlock; i < std::min<size_t>(vertices.size(), (b + 1) * size_t(kBlock)); ++i) scan(vertices[i], true);
       }
-      std::sort(out.begin(), out.end());
-      out.erase(std::unique(out.begin(), out.end()), out.end());
+      std::sort(keys.begin(), keys.end());
+      keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+      std::set_difference(keys.begin(), keys.end(), edges.begin(), edges.end(), std::back_inserter(found[b]));
     }
   });
   std::vector<uint64_t> pairs;

@@ -145,14 +145,17 @@ bool try_flip(Work& w, uint32_t h) {
   if (c == d || a == b) return false;
   const Vec3 pa = point(w.P, a), pb = point(w.P, b), pc = point(w.P, c), pd = point(w.P, d);
   const Vec3 nf = unit(area_vector(pa, pb, pc)), ng = unit(area_vector(pb, pa, pd));
-  if (dot(nf, ng) < w.cos_max_dihedral) return false;
+  // A sliver's normal says nothing about the surface (strip triangles at scan holes): next to
+  // one, the well-shaped triangle alone gives the plane the new pair must stay in.
+  const bool sliver = std::min(w.q[f], w.q[g]) < kSliverQuality;
+  if (!sliver && dot(nf, ng) < w.cos_max_dihedral) return false;
   const double q_old = std::min(w.q[f], w.q[g]);
   const double q1 = quality(pa, pd, pc), q2 = quality(pd, pb, pc);
   // A relative margin: equal-quality pairs (a square's two diagonals) must not flip back and forth.
   if (std::min(q1, q2) <= q_old * (1 + 1e-6) + 1e-12) return false;
   // The new pair must be as flat as the old and keep its orientation: no fold, no zero area.
   const Vec3 n1 = area_vector(pa, pd, pc), n2 = area_vector(pd, pb, pc);
-  const Vec3 n_old = add(nf, ng);
+  const Vec3 n_old = !sliver ? add(nf, ng) : w.q[f] >= w.q[g] ? nf : ng;
   if (dot(n1, n_old) <= 0 || dot(n2, n_old) <= 0) return false;
   if (dot(unit(n1), unit(n2)) < w.cos_max_dihedral) return false;
   if (has_neighbour_or_unsafe(w, prev_in_face(h), d)) return false;  // c → a; would duplicate edge c-d

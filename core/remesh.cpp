@@ -236,7 +236,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
     }
   }
   if (!defects.empty()) {
-    DefectRemoval removal = remove_manifold_defects(dual.mesh, dual.cluster_of_output_vertex);
+    DefectRemoval removal = remove_manifold_defects(dual);
     result.defect_faces_removed = removal.faces_removed;
     result.defect_vertices_removed = removal.vertices_removed;
     defects = find_manifold_defects(dual.mesh.view());

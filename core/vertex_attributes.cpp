@@ -25,10 +25,40 @@ struct RangeSums {
   std::vector<double> sums;
 };
 
-// What a thread reuses from range to range: the slot of each cluster in the range being summed
-// (kNoSlot when not met yet; reset after the range), and the range's growing sums.
+// Cluster id → its slot in the sums of the range being summed: open addressing over twice the
+// most clusters a range can meet, so a thread's table is 256 KiB whatever K is (a K-sized table
+// per thread would be 4 MiB each at K = 1M). Cleared after each range through the clusters met.
+class SlotTable {
+ public:
+  static constexpr uint32_t kSize = 2 * kRange;  // a power of two
+  SlotTable() : key_(kSize, kNoSlot), slot_(kSize) {}
+  /// The slot of cluster c; `next` (and inserted = true) when c is new.
+  uint32_t find_or_insert(uint32_t c, uint32_t next, bool& inserted) {
+    uint32_t at = (c * 0x9E3779B1u) >> (32 - kLog2Size);  // Fibonacci hashing
+    while (key_[at] != kNoSlot && key_[at] != c) at = (at + 1) & (kSize - 1);
+    inserted = key_[at] == kNoSlot;
+    if (inserted) key_[at] = c, slot_[at] = next;
+    return slot_[at];
+  }
+  /// Empties the table that holds exactly `clusters`. Entries never move, so each is found by
+  /// walking its probe chain past the ones already emptied.
+  void clear(std::span<const uint32_t> clusters) {
+    for (uint32_t c : clusters) {
+      uint32_t at = (c * 0x9E3779B1u) >> (32 - kLog2Size);
+      while (key_[at] != c) at = (at + 1) & (kSize - 1);
+      key_[at] = kNoSlot;
+    }
+  }
+
+ private:
+  static constexpr uint32_t kLog2Size = 15;
+  static_assert(kSize == 1u << kLog2Size);
+  std::vector<uint32_t> key_, slot_;
+};
+
+// What a thread reuses from range to range: the slot table and the range's growing sums.
 struct Scratch {
-  std::vector<uint32_t> slot;
+  SlotTable slots;
   RangeSums sums;
 };
 
@@ -52,7 +82,7 @@ std::vector<float> cluster_attribute_means(const MeshView& mesh, std::span<const
   const double origin[3] = {0, 0, 0};  // areas only: they depend on corner differences, not on the frame
 
   std::vector<RangeSums> partial(ranges);
-  tbb::enumerable_thread_specific<Scratch> scratch([&] { return Scratch{std::vector<uint32_t>(cluster_count, kNoSlot), {}}; });
+  tbb::enumerable_thread_specific<Scratch> scratch;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, ranges, 1), [&](const tbb::blocked_range<uint32_t>& r) {
     Scratch& s = scratch.local();
     for (uint32_t i = r.begin(); i != r.end(); ++i) {
@@ -65,9 +95,9 @@ std::vector<float> cluster_attribute_means(const MeshView& mesh, std::span<const
       for (uint32_t v = range.begin; v != range.end; ++v) {
         const int32_t c = labels[v];
         if (c < 0 || uint32_t(c) >= cluster_count) continue;
-        uint32_t& slot = s.slot[size_t(c)];
-        if (slot == kNoSlot) {  // capacity kept from earlier ranges: growth is rare
-          slot = uint32_t(local.clusters.size());
+        bool inserted = false;
+        const uint32_t slot = s.slots.find_or_insert(uint32_t(c), uint32_t(local.clusters.size()), inserted);
+        if (inserted) {  // capacity kept from earlier ranges: growth is rare
           local.clusters.push_back(uint32_t(c));
           local.first.push_back(v);
           local.sums.resize(local.sums.size() + row, 0.0);
@@ -79,7 +109,7 @@ std::vector<float> cluster_attribute_means(const MeshView& mesh, std::span<const
         const float* x = values + size_t(v) * stride;
         for (size_t k = 0; k < A; ++k) sum[1 + k] += area * double(x[columns[k]]);
       }
-      for (uint32_t c : local.clusters) s.slot[c] = kNoSlot;
+      s.slots.clear(local.clusters);
       partial[i] = local;  // one copy per range, sized by the clusters it met
     }
   });

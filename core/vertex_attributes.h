@@ -30,7 +30,7 @@ struct VertexAttributeColumns {
 /// Parallel over fixed vertex ranges (RangeVisit "attributes"), each summing its clusters in
 /// vertex order into sparse partial sums that are added in range order: the same floats for
 /// any thread count and storage. Memory: K·(columns + 1) doubles of sums, partial sums of about
-/// that size in all, a K-sized slot table per thread. O(V·columns + F) work. Throws
+/// that size in all, 256 KiB of slot table per thread. O(V·columns + F) work. Throws
 /// std::invalid_argument when `values` has fewer than V rows or a column is not below stride.
 std::vector<float> cluster_attribute_means(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count,
                                            const VertexAttributeColumns& attributes);

@@ -108,6 +108,18 @@ BoundaryLoops find_boundary_loops(const MeshView& mesh) {
 
 namespace {
 
+// Appends an output vertex at p with no cluster, lying at the mean of the input vertices `from`.
+// Returns its id.
+uint32_t add_strip_vertex(DualMesh& dual, const float* p, std::span<const uint32_t> from) {
+  const uint32_t id = dual.mesh.vertex_count();
+  dual.mesh.positions.insert(dual.mesh.positions.end(), p, p + 3);
+  dual.cluster_of_output_vertex.push_back(-1);
+  dual.source_of_output_vertex.push_back({uint32_t(dual.source_vertices.size()), uint32_t(from.size())});
+  dual.source_vertices.insert(dual.source_vertices.end(), from.begin(), from.end());
+  ++dual.boundary_vertices_added;
+  return id;
+}
+
 // Appends the §VI-D strip of every boundary loop: for each change of cluster a → b along the
 // loop, a vertex p at the middle of that boundary edge and the triangles (p, b, a) and
 // (p, p_next, b). Loops meeting fewer than three clusters close instead.
@@ -165,13 +177,11 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
         if (ring.size() == 3) {
           faces.push_back(canonical_rotation(output_of_cluster[ring[0]], output_of_cluster[ring[2]], output_of_cluster[ring[1]]));
         } else {
-          const uint32_t h = dual.mesh.vertex_count();
           double c[3] = {0, 0, 0};
           for (uint32_t v : loop)
             for (int k = 0; k < 3; ++k) c[k] += P[3 * size_t(v) + k];
-          for (int k = 0; k < 3; ++k) dual.mesh.positions.push_back(float(c[k] / double(n)));
-          dual.cluster_of_output_vertex.push_back(-1);
-          ++dual.boundary_vertices_added;
+          const float centroid[3] = {float(c[0] / double(n)), float(c[1] / double(n)), float(c[2] / double(n))};
+          const uint32_t h = add_strip_vertex(dual, centroid, loop);
           for (size_t t = 0; t < changes.size(); ++t) {
             const Edge e = edge(changes[t]);
             faces.push_back(canonical_rotation(h, output_of_cluster[labels[e.to]], output_of_cluster[labels[e.from]]));
@@ -184,6 +194,7 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
     // One strip point per change, except that consecutive changes whose midpoints coincide
     // (coincident input vertices) share one point, so no strip triangle is flat.
     std::vector<std::array<float, 3>> points;
+    std::vector<Edge> point_edges;  // the boundary edge each point is the midpoint of
     std::vector<uint32_t> point_of_change(changes.size());
     for (uint32_t t = 0; t < changes.size(); ++t) {
       const Edge e = edge(changes[t]);
@@ -195,22 +206,23 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
       }
       point_of_change[t] = uint32_t(points.size());
       points.push_back(p);
+      point_edges.push_back(e);
     }
     if (points.size() > 1 && points.back() == points.front()) {
       for (uint32_t t = 0; t < changes.size(); ++t)
         if (point_of_change[t] == points.size() - 1) point_of_change[t] = 0;
       points.pop_back();
+      point_edges.pop_back();
     }
     if (points.size() < 3) {
       ++dual.holes_closed;
       continue;
     }
     const uint32_t first_new = dual.mesh.vertex_count();
-    for (const auto& p : points) {
-      dual.mesh.positions.insert(dual.mesh.positions.end(), p.begin(), p.end());
-      dual.cluster_of_output_vertex.push_back(-1);
+    for (size_t i = 0; i < points.size(); ++i) {
+      const uint32_t ends[2] = {point_edges[i].from, point_edges[i].to};
+      add_strip_vertex(dual, points[i].data(), ends);
     }
-    dual.boundary_vertices_added += points.size();
     for (uint32_t t = 0; t < changes.size(); ++t) {
       const Edge e = edge(changes[t]);
       uint32_t a = output_of_cluster[labels[e.from]], b = output_of_cluster[labels[e.to]];
@@ -249,10 +261,8 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
           ++c;
           continue;
         }
-        const uint32_t q = dual.mesh.vertex_count();
-        for (int k = 0; k < 3; ++k) dual.mesh.positions.push_back(P[3 * size_t(loop[(begin + size_t(far)) % n]) + k]);
-        dual.cluster_of_output_vertex.push_back(-1);
-        ++dual.boundary_vertices_added;
+        const uint32_t corner = loop[(begin + size_t(far)) % n];
+        const uint32_t q = add_strip_vertex(dual, &P[3 * size_t(corner)], {&corner, 1});
         chain.insert(chain.begin() + std::ptrdiff_t(c + 1), q);
         chain_index.insert(chain_index.begin() + std::ptrdiff_t(c + 1), far);
       }
@@ -275,6 +285,7 @@ std::vector<Triple> boundary_strip_faces(const MeshView& mesh, const BoundaryLoo
   DualMesh scratch;
   scratch.mesh.positions.assign(3 * size_t(cluster_count), 0.0f);
   scratch.cluster_of_output_vertex.assign(cluster_count, 0);
+  scratch.source_of_output_vertex.assign(cluster_count, {});
   std::vector<uint32_t> identity(cluster_count);
   std::iota(identity.begin(), identity.end(), 0u);
   std::vector<Triple> faces;
@@ -295,6 +306,7 @@ DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, 
     output_of_cluster[c] = dual.mesh.vertex_count();
     for (int k = 0; k < 3; ++k) dual.mesh.positions.push_back(float(cluster_positions[3 * size_t(c) + k]));
     dual.cluster_of_output_vertex.push_back(int32_t(c));
+    dual.source_of_output_vertex.push_back({});
   }
   // The triples in cluster ids, renumbered: output_of_cluster is increasing on the non-empty
   // clusters, so the renumbered triples stay rotated, sorted and unique.
@@ -350,7 +362,10 @@ std::vector<uint32_t> find_manifold_defects(const TriangleSoupView& mesh) {
   return bad;
 }
 
-DefectRemoval remove_manifold_defects(MeshBuffers& mesh, std::vector<int32_t>& cluster_of_output_vertex) {
+DefectRemoval remove_manifold_defects(DualMesh& dual) {
+  MeshBuffers& mesh = dual.mesh;
+  std::vector<int32_t>& cluster_of_output_vertex = dual.cluster_of_output_vertex;
+  std::vector<VertexSource>& source_of_output_vertex = dual.source_of_output_vertex;
   DefectRemoval removal;
   for (int iteration = 0; iteration < 64; ++iteration) {
     std::vector<uint32_t> defects = find_manifold_defects(mesh.view());
@@ -382,10 +397,12 @@ DefectRemoval remove_manifold_defects(MeshBuffers& mesh, std::vector<int32_t>& c
       new_id[v] = next;
       for (int c = 0; c < 3; ++c) mesh.positions[3 * size_t(next) + c] = mesh.positions[3 * size_t(v) + c];
       cluster_of_output_vertex[next] = cluster_of_output_vertex[v];
+      source_of_output_vertex[next] = source_of_output_vertex[v];
       ++next;
     }
     mesh.positions.resize(3 * size_t(next));
     cluster_of_output_vertex.resize(next);
+    source_of_output_vertex.resize(next);
     for (uint32_t& i : T) i = new_id[i];
   }
   return removal;

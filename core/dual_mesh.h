@@ -26,9 +26,20 @@ struct DualMeshOptions {
 /// of the equilateral triangle of area area / (2·clusters) (a closed mesh has 2N faces).
 double typical_dual_edge(double area, uint32_t clusters);
 
+/// Where a boundary-strip vertex lies: at the mean of the input vertices
+/// DualMesh::source_vertices[begin, begin + count) — the two ends of the boundary edge whose
+/// midpoint it is, the one input vertex a Douglas–Peucker corner copies, or every vertex of the
+/// hole whose centroid closes it. count = 0 for a cluster vertex. Per-vertex input data (colours)
+/// is interpolated the same way (core/vertex_attributes.h).
+struct VertexSource {
+  uint32_t begin = 0, count = 0;
+};
+
 struct DualMesh {
   MeshBuffers mesh;
   std::vector<int32_t> cluster_of_output_vertex;  ///< cluster id, or −1 for boundary-strip vertices
+  std::vector<VertexSource> source_of_output_vertex;  ///< one per output vertex (count 0: a cluster's)
+  std::vector<uint32_t> source_vertices;          ///< input vertex ids the sources point into
   uint64_t duplicate_faces_removed = 0;
   uint64_t boundary_vertices_added = 0;
   /// Boundary loops that meet fewer than three clusters: the hole is smaller than the output
@@ -78,7 +89,8 @@ struct DefectRemoval {
 
 /// Last resort after the clustering repair: deletes the faces around every defect vertex of
 /// find_manifold_defects (and then vertices left without faces), until none is left. Leaves
-/// small holes instead of non-manifold output. `cluster_of_output_vertex` is compacted along.
-DefectRemoval remove_manifold_defects(MeshBuffers& mesh, std::vector<int32_t>& cluster_of_output_vertex);
+/// small holes instead of non-manifold output. The per-output-vertex arrays (positions, clusters,
+/// sources) are compacted together, in order: the only place output vertices are removed.
+DefectRemoval remove_manifold_defects(DualMesh& dual);
 
 }  // namespace streamcvd

@@ -281,7 +281,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
     }
   }
   if (!defects.empty()) {
-    DefectRemoval removal = remove_manifold_defects(dual.mesh, dual.cluster_of_output_vertex);
+    DefectRemoval removal = remove_manifold_defects(dual);
     result.defect_faces_removed = removal.faces_removed;
     result.defect_vertices_removed = removal.vertices_removed;
     defects = find_manifold_defects(dual.mesh.view());
@@ -337,6 +337,12 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   result.holes_closed = dual.holes_closed;
   result.clusters_connected = clusters_connected(mesh, labels, K);
   result.seconds.checks = seconds_since(t);
+  if (!options.attributes.empty()) {  // after every edit of the output's vertex set, while the labels exist
+    t = std::chrono::steady_clock::now();
+    const std::vector<float> means = cluster_attribute_means(mesh, labels, K, options.attributes);
+    result.vertex_attributes = output_vertex_attributes(means, dual, options.attributes);
+    result.seconds.attributes = seconds_since(t);
+  }
   result.mesh = std::move(dual.mesh);
   hand_over_vertex_labels(options.keep_vertex_labels, labels, result);
   return result;

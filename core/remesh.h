@@ -13,6 +13,7 @@
 #include "core/mesh_buffers.h"
 #include "core/mesh_optimize.h"
 #include "core/mesh_view.h"
+#include "core/vertex_attributes.h"
 
 namespace streamcvd {
 
@@ -44,17 +45,24 @@ struct RemeshOptions {
   /// copied into RAM when the job's storage is a work space; a job that only writes the output
   /// mesh turns this off, so nothing V-sized outlives the clustering.
   bool keep_vertex_labels = true;
+  /// Per-vertex values (colours, scalars) carried to the output as area-weighted cluster means
+  /// (core/vertex_attributes.h); empty: none.
+  VertexAttributeColumns attributes;
 };
 
 struct StageTimes {
   double curvature = 0, items = 0, sampling = 0, clustering = 0, repair = 0, dual = 0, optimize = 0;
   double placement = 0;  ///< sites projected onto the input, output vertices placed, dual defects removed
   double checks = 0;     ///< flat-face safety net, topology and per-component checks, cluster connectivity
+  double attributes = 0; ///< cluster means of the carried vertex attributes and the output rows
   double clustering_cpu = 0;  ///< CPU seconds of all threads during the clustering stage
 };
 
 struct RemeshResult {
   MeshBuffers mesh;                  ///< output vertices (cluster representatives) and triangles
+  /// options.attributes.columns.size() floats per output vertex (in mesh order): the carried
+  /// attributes, cluster means or, for strip vertices, means of the input vertices they lie at.
+  std::vector<float> vertex_attributes;
   LargeArray<int32_t> cluster_of_vertex;  ///< final label of each input vertex (in RAM; empty unless keep_vertex_labels)
   /// Cluster ids: the budget's (after components), plus spare ones up to N that splits making
   /// the vertex count exact may take. The output has one vertex per non-empty cluster.

@@ -14,6 +14,11 @@
 
 namespace streamcvd {
 
+const char* scalar_type_name(ScalarType type) {
+  constexpr const char* kNames[] = {"char", "uchar", "short", "ushort", "int", "uint", "float", "double"};
+  return kNames[static_cast<int>(type)];
+}
+
 namespace {
 
 std::string lower(std::string_view s) {

@@ -5,6 +5,7 @@
 // the store builder (streaming/store_build.h, out of core) and read_mesh() (small meshes in RAM).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <span>
@@ -26,6 +27,23 @@ enum class ScalarType : uint8_t { I8, U8, I16, U16, I32, U32, F32, F64 };
 struct VertexAttribute {
   std::string name;                   ///< property name as in the file
   ScalarType type = ScalarType::F32;  ///< its type in the file
+};
+
+/// The PLY name of a scalar type ("uchar", "float"...): how writers and the store's
+/// attributes.txt spell it. O(1), thread-safe.
+const char* scalar_type_name(ScalarType type);
+/// Bytes of one value of the type in a binary file.
+inline size_t scalar_type_bytes(ScalarType type) {
+  constexpr size_t kSize[] = {1, 1, 2, 2, 4, 4, 4, 8};
+  return kSize[static_cast<int>(type)];
+}
+
+/// Per-vertex attribute rows, borrowed: names.size() floats per vertex, row-major, in vertex
+/// order (values as stored: uchar 200 → 200.0f). What writers and the subdivision take.
+struct VertexAttributeRows {
+  std::span<const VertexAttribute> names;
+  std::span<const float> values;
+  bool empty() const { return names.empty(); }
 };
 
 /// What a reader knows before the data arrives (DESIGN.md §2: headers first).

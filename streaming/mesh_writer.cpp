@@ -6,6 +6,9 @@
 // in parallel with a TBB pipeline whose last stage writes the blocks in order. Ascii floats use
 // std::to_chars (shortest representation that reads back to the same float32, bit-exact).
 //
+// Vertex attributes: PLY properties after x y z (binary records formatted in blocks then, not
+// written straight from the positions), OBJ "v x y z r g b" colours (streaming/mesh_io.h).
+//
 // Empty meshes: V = 0 is refused with OutputError (read_mesh rejects such a file, so it could
 // never be read back); F = 0 with V > 0 (a point set) is written for PLY, OBJ and OFF, but not
 // for STL, which stores only triangles and would come back empty.
@@ -135,6 +138,54 @@ char* put_vertex_line(char* p, std::string_view lead, const float* xyz) {
   return p;
 }
 
+// --- vertex attributes ------------------------------------------------------------------------
+
+constexpr size_t kAttributeMax = 26;  // " " + the longest value: a double's shortest form (24)
+
+// An attribute value as an integer type holds it: rounded, clamped to T's range (NaN → 0).
+template <class T>
+T to_integer(float x) {
+  if (!(x == x)) return T(0);
+  const double r = std::round(double(x));
+  return T(std::clamp(r, double(std::numeric_limits<T>::min()), double(std::numeric_limits<T>::max())));
+}
+
+char* put_attribute_le(char* p, ScalarType type, float x) {
+  switch (type) {
+    case ScalarType::I8: return put_le(p, to_integer<int8_t>(x));
+    case ScalarType::U8: return put_le(p, to_integer<uint8_t>(x));
+    case ScalarType::I16: return put_le(p, to_integer<int16_t>(x));
+    case ScalarType::U16: return put_le(p, to_integer<uint16_t>(x));
+    case ScalarType::I32: return put_le(p, to_integer<int32_t>(x));
+    case ScalarType::U32: return put_le(p, to_integer<uint32_t>(x));
+    case ScalarType::F32: return put_le(p, x);
+    case ScalarType::F64: return put_le(p, double(x));
+  }
+  return p;
+}
+
+char* put_attribute_ascii(char* p, ScalarType type, float x) {
+  *p++ = ' ';
+  switch (type) {
+    case ScalarType::I8: return std::to_chars(p, p + 24, to_integer<int8_t>(x)).ptr;
+    case ScalarType::U8: return std::to_chars(p, p + 24, to_integer<uint8_t>(x)).ptr;
+    case ScalarType::I16: return std::to_chars(p, p + 24, to_integer<int16_t>(x)).ptr;
+    case ScalarType::U16: return std::to_chars(p, p + 24, to_integer<uint16_t>(x)).ptr;
+    case ScalarType::I32: return std::to_chars(p, p + 24, to_integer<int32_t>(x)).ptr;
+    case ScalarType::U32: return std::to_chars(p, p + 24, to_integer<uint32_t>(x)).ptr;
+    case ScalarType::F32: return put_float(p, x);
+    case ScalarType::F64: return std::to_chars(p, p + 24, double(x)).ptr;
+  }
+  return p;
+}
+
+// An OBJ colour channel in [0, 1]: unsigned integer types (uchar 0..255...) divided by their
+// maximum, floats (already 0..1 in practice) as they are.
+float obj_colour(ScalarType type, float x) {
+  const double max = type == ScalarType::U8 ? 255.0 : type == ScalarType::U16 ? 65535.0 : type == ScalarType::U32 ? 4294967295.0 : 0.0;
+  return max > 0 ? float(std::clamp(double(x) / max, 0.0, 1.0)) : x;
+}
+
 char* put_face_line(char* p, std::string_view lead, const uint32_t* abc, uint64_t base) {
   p = put_str(p, lead);
   p = put_uint(p, abc[0] + base);
@@ -158,27 +209,57 @@ void write_ascii_faces(AtomicOutputFile& out, const TriangleSoupView& mesh, std:
                 [&](char* p, uint64_t f) { return put_face_line(p, lead, tri + 3 * f, base); });
 }
 
-void write_ply(AtomicOutputFile& out, const TriangleSoupView& mesh, const WriteOptions& options) {
-  out.write(options.ascii ? "ply\nformat ascii 1.0\n" : "ply\nformat binary_little_endian 1.0\n");
-  write_comment(out, "comment ", options.comment);
-  const uint32_t v_count = mesh.vertex_count();
-  std::string header = "element vertex " + std::to_string(v_count) +
-                       "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
-                       std::to_string(mesh.face_count()) + "\nproperty list uchar " +
-                       // int holds indices up to 2^31 - 1; beyond that only uint is correct.
-                       (v_count <= uint32_t(std::numeric_limits<int32_t>::max()) ? "int" : "uint") +
-                       " vertex_indices\nend_header\n";
-  out.write(header);
-  if (options.ascii) {
-    write_ascii_vertices(out, mesh, "");
-    write_ascii_faces(out, mesh, "3 ", 0);
-    return;
-  }
+// Binary PLY vertices without attributes: straight from the caller's array on little-endian hosts.
+void write_binary_positions(AtomicOutputFile& out, const TriangleSoupView& mesh) {
   if constexpr (std::endian::native == std::endian::little) {
     out.write(mesh.positions.data(), mesh.positions.size_bytes());
   } else {
     const float* pos = mesh.positions.data();
     write_records(out, mesh.positions.size(), 4, [&](char* p, uint64_t i) { return put_le(p, pos[i]); });
+  }
+}
+
+// PLY vertices with attribute columns: one record (ascii line or binary) per vertex.
+void write_ply_vertices_with_attributes(AtomicOutputFile& out, const TriangleSoupView& mesh, const WriteOptions& options) {
+  const std::span<const VertexAttribute> names = options.attributes.names;
+  const size_t A = names.size();
+  const float* pos = mesh.positions.data();
+  const float* values = options.attributes.values.data();
+  if (options.ascii) {
+    write_records(out, mesh.vertex_count(), kVertexLineMax + kAttributeMax * A, [&](char* p, uint64_t v) {
+      p = put_vertex_line(p, "", pos + 3 * v) - 1;  // the line's newline goes after the attributes
+      for (size_t k = 0; k < A; ++k) p = put_attribute_ascii(p, names[k].type, values[A * v + k]);
+      *p++ = '\n';
+      return p;
+    });
+    return;
+  }
+  size_t record = 12;
+  for (const VertexAttribute& a : names) record += scalar_type_bytes(a.type);
+  write_records(out, mesh.vertex_count(), record, [&](char* p, uint64_t v) {
+    for (int k = 0; k < 3; ++k) p = put_le(p, pos[3 * v + k]);
+    for (size_t k = 0; k < A; ++k) p = put_attribute_le(p, names[k].type, values[A * v + k]);
+    return p;
+  });
+}
+
+void write_ply(AtomicOutputFile& out, const TriangleSoupView& mesh, const WriteOptions& options) {
+  out.write(options.ascii ? "ply\nformat ascii 1.0\n" : "ply\nformat binary_little_endian 1.0\n");
+  write_comment(out, "comment ", options.comment);
+  const uint32_t v_count = mesh.vertex_count();
+  std::string header = "element vertex " + std::to_string(v_count) + "\nproperty float x\nproperty float y\nproperty float z\n";
+  for (const VertexAttribute& a : options.attributes.names)
+    header += std::string("property ") + scalar_type_name(a.type) + " " + a.name + "\n";
+  header += "element face " + std::to_string(mesh.face_count()) + "\nproperty list uchar " +
+            // int holds indices up to 2^31 - 1; beyond that only uint is correct.
+            (v_count <= uint32_t(std::numeric_limits<int32_t>::max()) ? "int" : "uint") + " vertex_indices\nend_header\n";
+  out.write(header);
+  if (!options.attributes.empty()) write_ply_vertices_with_attributes(out, mesh, options);
+  else if (options.ascii) write_ascii_vertices(out, mesh, "");
+  else write_binary_positions(out, mesh);
+  if (options.ascii) {
+    write_ascii_faces(out, mesh, "3 ", 0);
+    return;
   }
   const uint32_t* tri = mesh.triangles.data();
   write_records(out, mesh.face_count(), 13, [&](char* p, uint64_t f) {
@@ -191,7 +272,23 @@ void write_ply(AtomicOutputFile& out, const TriangleSoupView& mesh, const WriteO
 
 void write_obj(AtomicOutputFile& out, const TriangleSoupView& mesh, const WriteOptions& options) {
   write_comment(out, "# ", options.comment);
-  write_ascii_vertices(out, mesh, "v ");
+  const std::vector<size_t> colours = attributes_written(MeshFormat::Obj, options.attributes.names);
+  if (colours.empty()) {
+    write_ascii_vertices(out, mesh, "v ");
+  } else {  // "v x y z r g b"
+    const size_t A = options.attributes.names.size();
+    const float* pos = mesh.positions.data();
+    const float* values = options.attributes.values.data();
+    write_records(out, mesh.vertex_count(), kVertexLineMax + 3 * kAttributeMax, [&](char* p, uint64_t v) {
+      p = put_vertex_line(p, "v ", pos + 3 * v) - 1;
+      for (size_t k : colours) {
+        *p++ = ' ';
+        p = put_float(p, obj_colour(options.attributes.names[k].type, values[A * v + k]));
+      }
+      *p++ = '\n';
+      return p;
+    });
+  }
   write_ascii_faces(out, mesh, "f ", 1);  // OBJ indices are 1-based
 }
 
@@ -235,7 +332,8 @@ void write_stl(AtomicOutputFile& out, const TriangleSoupView& mesh, const WriteO
 }
 
 /// Caller bugs (bad indices, NaN) would produce a file nobody can read: refuse them loudly.
-void check_mesh(const std::string& path, const TriangleSoupView& mesh, MeshFormat format) {
+void check_mesh(const std::string& path, const TriangleSoupView& mesh, MeshFormat format, const VertexAttributeRows& attributes) {
+  const size_t options_attribute_count = attributes.names.size(), attribute_values = attributes.values.size();
   if (mesh.positions.size() % 3 != 0 || mesh.triangles.size() % 3 != 0)
     throw std::invalid_argument(path + ": positions and triangles must hold whole triples");
   if (mesh.positions.size() / 3 > std::numeric_limits<uint32_t>::max())
@@ -246,6 +344,10 @@ void check_mesh(const std::string& path, const TriangleSoupView& mesh, MeshForma
     throw OutputError(error_at(path, "STL cannot store a mesh without triangles"));
   if (format == MeshFormat::Stl && mesh.face_count() > std::numeric_limits<uint32_t>::max())
     throw OutputError(error_at(path, "binary STL holds at most 2^32 - 1 triangles"));
+  if (mesh.positions.size() / 3 * options_attribute_count != attribute_values)
+    throw std::invalid_argument(path + ": " + std::to_string(attribute_values) + " attribute values for " +
+                                std::to_string(v_count) + " vertices of " + std::to_string(options_attribute_count) +
+                                " attributes");
   uint32_t max_index = 0;
   for (uint32_t i : mesh.triangles) max_index = std::max(max_index, i);
   if (!mesh.triangles.empty() && max_index >= v_count) {
@@ -266,6 +368,22 @@ void check_mesh(const std::string& path, const TriangleSoupView& mesh, MeshForma
 
 }  // namespace
 
+std::vector<size_t> attributes_written(MeshFormat format, std::span<const VertexAttribute> attributes) {
+  std::vector<size_t> written;
+  if (format == MeshFormat::Ply) {
+    for (size_t k = 0; k < attributes.size(); ++k) written.push_back(k);
+  } else if (format == MeshFormat::Obj) {
+    for (const char* channel : {"red", "green", "blue"})
+      for (size_t k = 0; k < attributes.size(); ++k)
+        if (attributes[k].name == channel) {
+          written.push_back(k);
+          break;
+        }
+    if (written.size() != 3) written.clear();  // a colour needs all three channels
+  }
+  return written;
+}
+
 void write_mesh(const std::string& path, const TriangleSoupView& mesh, const WriteOptions& options) {
   MeshFormat format;
   try {
@@ -273,7 +391,7 @@ void write_mesh(const std::string& path, const TriangleSoupView& mesh, const Wri
   } catch (const InputError& e) {
     throw OutputError(e.what());  // an unwritable name is an output failure, like a missing folder
   }
-  check_mesh(path, mesh, format);
+  check_mesh(path, mesh, format, options.attributes);
   AtomicOutputFile out(path, has_zst_extension(path), options.zstd_level);
   switch (format) {
     case MeshFormat::Ply: write_ply(out, mesh, options); break;

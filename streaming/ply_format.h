@@ -18,10 +18,7 @@ namespace streamcvd::ply {
 enum class Encoding { Ascii, BinaryLittle, BinaryBig };
 using Scalar = ScalarType;
 
-inline size_t scalar_size(Scalar t) {
-  constexpr size_t kSize[] = {1, 1, 2, 2, 4, 4, 4, 8};
-  return kSize[static_cast<int>(t)];
-}
+inline size_t scalar_size(Scalar t) { return scalar_type_bytes(t); }
 inline bool is_integer(Scalar t) { return t != Scalar::F32 && t != Scalar::F64; }
 
 /// What the body reader does with a property.

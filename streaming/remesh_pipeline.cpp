@@ -40,6 +40,28 @@ uint64_t resident_budget(uint64_t limit, uint64_t work_ram_bytes) {
   if (limit == 0) return ~uint64_t(0);
   return std::max<uint64_t>(limit > work_ram_bytes ? limit - work_ram_bytes : 0, 64ull << 20);
 }
+// The columns of `available` that options select, in the order given (file order for All).
+// Throws InputError for a name the input lacks, listing those it has.
+std::vector<uint32_t> selected_attribute_columns(const std::vector<VertexAttribute>& available, const PipelineOptions& options) {
+  std::vector<uint32_t> columns;
+  if (options.attributes == ReadOptions::Attributes::None) return columns;
+  if (options.attributes == ReadOptions::Attributes::All) {
+    for (uint32_t k = 0; k < available.size(); ++k) columns.push_back(k);
+    return columns;
+  }
+  for (const std::string& name : options.attribute_names) {
+    const auto it = std::find_if(available.begin(), available.end(), [&](const VertexAttribute& a) { return a.name == name; });
+    if (it == available.end()) {
+      std::string list;
+      for (const VertexAttribute& a : available) list += (list.empty() ? "" : ", ") + a.name;
+      throw InputError("no vertex attribute '" + name + "' in the input (it has " +
+                       (list.empty() ? std::string("none") : list) + ")");
+    }
+    if (std::find(columns.begin(), columns.end(), uint32_t(it - available.begin())) == columns.end())
+      columns.push_back(uint32_t(it - available.begin()));
+  }
+  return columns;
+}
 }  // namespace
 
 InputSummary summarize_input(const MeshView& mesh, uint64_t components) {
@@ -65,8 +87,11 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   result.memory_limit = options.memory_limit;
   const std::string work = options.work_directory.empty() ? default_work_directory() : options.work_directory;
   MeshView view = store.view();
+  const std::vector<uint32_t> columns = selected_attribute_columns(store.attributes(), options);
+  for (uint32_t k : columns) result.attributes.push_back(store.attributes()[k]);
   result.subdivision_levels = subdivision_levels(view.vertex_count(), options.remesh.vertices, options.subdivide);
-  // Subdivision streams each level from the current store into the builder (RAM or work files).
+  // Subdivision streams each level from the current store into the builder (RAM or work files),
+  // with the attributes when any is carried (midpoints get their edge's mean).
   MeshStore subdivided;
   for (int level = 0; level < result.subdivision_levels; ++level) {
     const auto t = std::chrono::steady_clock::now();
@@ -74,8 +99,11 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
     build.memory_limit = options.memory_limit;
     build.work_directory = work;
     WorkSpace scratch(work, work_ram_budget(options.memory_limit, 0));
+    const MeshStore& current = level == 0 ? store : subdivided;
+    const VertexAttributeRows rows =
+        columns.empty() ? VertexAttributeRows{} : VertexAttributeRows{current.attributes(), current.vertex_attributes()};
     MeshStore next = MeshStore::build_from_stream(
-        [&](MeshSink& sink) { stream_subdivision(view, sink, scratch); }, build, nullptr, options.progress);
+        [&](MeshSink& sink) { stream_subdivision(view, sink, scratch, rows); }, build, nullptr, options.progress);
     subdivided = std::move(next);
     view = subdivided.view();
     result.subdivide_seconds += seconds_since(t);
@@ -95,6 +123,8 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
     scheduler.emplace(remeshed, &space, resident_budget(options.memory_limit, result.work_ram_bytes));
     view.residency = &*scheduler;
   }
+  if (!columns.empty())  // a subdivided store has every column of the input's
+    remesh_options.attributes = {remeshed.vertex_attributes(), remeshed.header().attribute_count, columns};
   remesh_options.clustering.storage = &space;
   remesh_options.keep_vertex_labels = false;  // only the output mesh leaves the job
   result.remesh = remesh(view, remesh_options, space);
@@ -129,13 +159,17 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
     StoreBuildOptions build;
     build.memory_limit = o.memory_limit;
     build.work_directory = o.work_directory.empty() ? default_work_directory() : o.work_directory;
+    // Attributes not carried need not be stored (a kept store keeps them all, for reruns); named
+    // ones are all read, so that a missing name can be reported with the ones the file has.
+    ReadOptions read;
+    if (o.attributes == ReadOptions::Attributes::None && !o.keep_work) read.attributes = ReadOptions::Attributes::None;
     if (o.keep_work) {
       // A named store in the work folder, kept for a rerun.
       std::string name = std::filesystem::path(input == "-" ? "stdin" : input).filename().string();
       kept = (std::filesystem::path(build.work_directory) / (name + ".store")).string();
-      store = MeshStore::ingest(input, kept, build, {}, nullptr, o.progress);
+      store = MeshStore::ingest(input, kept, build, read, nullptr, o.progress);
     } else {
-      store = MeshStore::build_from_file(input, build, {}, nullptr, o.progress);
+      store = MeshStore::build_from_file(input, build, read, nullptr, o.progress);
     }
     store_seconds = seconds_since(t);
   }

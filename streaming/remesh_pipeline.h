@@ -7,6 +7,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "core/mesh_stats.h"
 #include "core/remesh.h"
@@ -29,6 +30,11 @@ struct PipelineOptions {
   bool keep_work = false;
   /// Progress of the store build of a file input, and of the stages.
   std::function<void(const BuildProgress&)> progress;
+  /// Vertex attributes carried to the output as area-weighted cluster means: all the input has
+  /// (default), none (a file input's store then keeps none), or those of attribute_names, each of
+  /// which the input must have (InputError listing the available ones otherwise).
+  ReadOptions::Attributes attributes = ReadOptions::Attributes::All;
+  std::vector<std::string> attribute_names;
 };
 
 struct InputSummary {
@@ -41,6 +47,8 @@ struct InputSummary {
 
 struct PipelineResult {
   RemeshResult remesh;
+  /// The attributes carried (names and input types): the columns of remesh.vertex_attributes.
+  std::vector<VertexAttribute> attributes;
   InputSummary input;
   int subdivision_levels = 0;
   uint64_t remeshed_vertices = 0, remeshed_faces = 0;  ///< after subdivision

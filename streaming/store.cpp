@@ -70,15 +70,12 @@ std::span<const T> array_of(std::span<const std::byte> bytes) {
   throw InputError(error_at(directory + "/" + file, problem));
 }
 
-constexpr std::pair<ScalarType, const char*> kTypeNames[] = {
-    {ScalarType::I8, "char"}, {ScalarType::U8, "uchar"}, {ScalarType::I16, "short"}, {ScalarType::U16, "ushort"},
-    {ScalarType::I32, "int"}, {ScalarType::U32, "uint"}, {ScalarType::F32, "float"}, {ScalarType::F64, "double"}};
+constexpr ScalarType kScalarTypes[] = {ScalarType::I8,  ScalarType::U8,  ScalarType::I16, ScalarType::U16,
+                                       ScalarType::I32, ScalarType::U32, ScalarType::F32, ScalarType::F64};
 
 std::string attributes_text(const std::vector<VertexAttribute>& attributes) {
   std::string text;
-  for (const VertexAttribute& a : attributes)
-    for (const auto& [type, name] : kTypeNames)
-      if (type == a.type) text += a.name + " " + name + "\n";
+  for (const VertexAttribute& a : attributes) text += a.name + " " + scalar_type_name(a.type) + "\n";
   return text;
 }
 
@@ -455,8 +452,8 @@ MeshStore MeshStore::open(const std::string& directory) {
     while (in >> name >> type) {
       VertexAttribute a{name, ScalarType::F32};
       bool known = false;
-      for (const auto& [t, n] : kTypeNames)
-        if (type == n) a.type = t, known = true;
+      for (const ScalarType t : kScalarTypes)
+        if (type == scalar_type_name(t)) a.type = t, known = true;
       if (!known) fail(kAttributesFile, "unknown attribute type '" + type + "'");
       s.attributes.push_back(a);
     }

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <limits>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "core/errors.h"
@@ -12,7 +14,8 @@
 
 namespace streamcvd {
 
-void stream_subdivision(const MeshView& mesh, MeshSink& sink, ArrayStorage& storage, uint32_t block) {
+void stream_subdivision(const MeshView& mesh, MeshSink& sink, ArrayStorage& storage, VertexAttributeRows attributes,
+                        uint32_t block) {
   const uint32_t V = mesh.vertex_count();
   const uint64_t F = mesh.face_count();
   // first_edge[v]: index of v's first upper edge {v, u > v}; neighbour lists are sorted.
@@ -33,12 +36,18 @@ void stream_subdivision(const MeshView& mesh, MeshSink& sink, ArrayStorage& stor
   header.vertices = uint64_t(V) + E;
   header.faces = 4 * F;  // an upper bound: faces repeating a vertex are copied once
   header.vertices_before_triangles = true;
+  header.attributes.assign(attributes.names.begin(), attributes.names.end());
+  const size_t A = attributes.names.size();
+  if (A > 0 && attributes.values.size() != A * V)
+    throw std::invalid_argument("subdivision: " + std::to_string(attributes.values.size()) + " attribute values for " +
+                                std::to_string(V) + " vertices of " + std::to_string(A) + " attributes");
   sink.begin(header);
   const float* P = mesh.positions.data();
-  std::vector<float> xyz;
+  const float* X = attributes.values.data();
+  std::vector<float> xyz, rows;
   for (uint32_t v0 = 0; v0 < V; v0 += block) {
     const uint32_t v1 = uint32_t(std::min<uint64_t>(V, uint64_t(v0) + block));
-    sink.vertices({P + 3 * size_t(v0), 3 * size_t(v1 - v0)}, {});
+    sink.vertices({P + 3 * size_t(v0), 3 * size_t(v1 - v0)}, A ? attributes.values.subspan(A * v0, A * (v1 - v0)) : std::span<const float>());
   }
   // Midpoints, a block of vertices' upper edges at a time.
   for (uint32_t v0 = 0; v0 < V;) {
@@ -46,14 +55,17 @@ void stream_subdivision(const MeshView& mesh, MeshSink& sink, ArrayStorage& stor
     while (v1 < V && first_edge[v1 + 1] - first_edge[v0] <= block) ++v1;
     if (v1 == v0) ++v1;  // a vertex with more upper edges than a block
     xyz.resize(3 * size_t(first_edge[v1] - first_edge[v0]));
+    rows.resize(A * size_t(first_edge[v1] - first_edge[v0]));
     tbb::parallel_for(tbb::blocked_range<uint32_t>(v0, v1, 1024), [&](const tbb::blocked_range<uint32_t>& r) {
       for (uint32_t v = r.begin(); v != r.end(); ++v) {
-        size_t at = 3 * size_t(first_edge[v] - first_edge[v0]);
-        for (uint32_t u : upper(v))
+        size_t at = 3 * size_t(first_edge[v] - first_edge[v0]), row = A * size_t(first_edge[v] - first_edge[v0]);
+        for (uint32_t u : upper(v)) {
           for (int c = 0; c < 3; ++c) xyz[at++] = 0.5f * (P[3 * size_t(v) + c] + P[3 * size_t(u) + c]);
+          for (size_t k = 0; k < A; ++k) rows[row++] = float(0.5 * (double(X[A * v + k]) + double(X[A * u + k])));
+        }
       }
     });
-    sink.vertices(xyz, {});
+    sink.vertices(xyz, rows);
     v0 = v1;
   }
   // Faces: the midpoint of {a, b} is V + first_edge[lo] + the rank of hi among lo's upper edges.

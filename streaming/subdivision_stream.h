@@ -16,10 +16,12 @@ namespace streamcvd {
 /// V input vertices unchanged, then one midpoint per undirected edge {v, u} (v < u) in the order
 /// of the store's sorted neighbour lists (v ascending, then u), then four triangles per face
 /// (orientation kept; a face repeating a vertex is copied unchanged). V' = V + E, F' ≤ 4F.
+/// `attributes` (rows of the V input vertices, or empty) go along: a vertex keeps its row, a
+/// midpoint gets the mean of its edge's two (header.attributes = their names).
 /// Memory: one 8-byte edge offset per vertex from `storage` plus a block; time O(V + F) with a
 /// binary search per face edge; parallel within blocks. Throws InputError when V' ≥ 2^32.
 void stream_subdivision(const MeshView& mesh, MeshSink& sink, ArrayStorage& storage = ram_storage(),
-                        uint32_t block = 1u << 16);
+                        VertexAttributeRows attributes = {}, uint32_t block = 1u << 16);
 
 /// Convenience for tests and small meshes: one level of subdivision of a soup (vertices first in
 /// their order, then the midpoints by edge (lo, hi); face f becomes faces 4f..4f+3, or one face

@@ -72,6 +72,26 @@ uint64_t boundary_changes(const MeshView& m, const std::vector<int32_t>& labels)
   return n;
 }
 
+// Every output vertex has a source; a strip vertex's sources lie where it does (the mean of their
+// positions), so data interpolated from them matches its position. Returns the source counts.
+std::multiset<uint32_t> expect_sources_locate_strip_vertices(const MeshView& input, const DualMesh& d) {
+  std::multiset<uint32_t> counts;
+  EXPECT_EQ(d.source_of_output_vertex.size(), d.mesh.vertex_count());
+  for (uint32_t o = 0; o < d.source_of_output_vertex.size(); ++o) {
+    const VertexSource s = d.source_of_output_vertex[o];
+    EXPECT_EQ(s.count == 0, d.cluster_of_output_vertex[o] >= 0) << "vertex " << o;
+    if (s.count == 0) continue;
+    counts.insert(s.count);
+    EXPECT_LE(size_t(s.begin) + s.count, d.source_vertices.size());
+    for (int k = 0; k < 3; ++k) {
+      double mean = 0;
+      for (uint32_t i = 0; i < s.count; ++i) mean += input.positions[3 * size_t(d.source_vertices[s.begin + i]) + k];
+      EXPECT_NEAR(mean / s.count, d.mesh.positions[3 * size_t(o) + k], 1e-6) << "vertex " << o;
+    }
+  }
+  return counts;
+}
+
 // --- the dual of hand-built clusterings ----------------------------------------------------------
 
 TEST(DualMesh, OneTrianglePerTriplePointWithInputOrientation) {
@@ -137,6 +157,36 @@ TEST(DualMesh, ThreeClustersOnAGridMeetAtOneTriplePoint) {
   EXPECT_EQ(uint64_t(std::count(s.cluster_of_output_vertex.begin(), s.cluster_of_output_vertex.end(), -1)),
             s.boundary_vertices_added);
   EXPECT_TRUE(find_manifold_defects(s.mesh.view()).empty());
+  // Three edge midpoints (two sources each), the rest corner copies (one).
+  const std::multiset<uint32_t> counts = expect_sources_locate_strip_vertices(m.view, s);
+  EXPECT_EQ(counts.count(2), 3u);
+  EXPECT_EQ(counts.count(1), s.boundary_vertices_added - 3);
+}
+
+TEST(DualMesh, AClosedHoleCentreLiesAtTheMeanOfItsLoop) {
+  // 8×8 grid without its central cell: a square hole whose four corners lie in four quadrant
+  // clusters. Below the closing perimeter the hole closes by a fan from its centroid.
+  const int n = 8;
+  MeshBuffers grid = make_grid(n, n);
+  MeshBuffers holed = grid;
+  holed.triangles.clear();
+  for (size_t f = 0; f < grid.face_count(); ++f) {
+    double cx = 0, cy = 0;
+    for (int k = 0; k < 3; ++k) {
+      cx += grid.positions[3 * size_t(grid.triangles[3 * f + k])] / 3.0;
+      cy += grid.positions[3 * size_t(grid.triangles[3 * f + k]) + 1] / 3.0;
+    }
+    if (std::abs(cx - 0.5) < 0.0625 && std::abs(cy - 0.5) < 0.0625) continue;
+    holed.triangles.insert(holed.triangles.end(), grid.triangles.begin() + 3 * f, grid.triangles.begin() + 3 * f + 3);
+  }
+  ASSERT_EQ(holed.face_count() + 2, grid.face_count());
+  Stored m(holed);
+  std::vector<int32_t> labels(m.view.vertex_count());
+  for (uint32_t v = 0; v < labels.size(); ++v)
+    labels[v] = (grid_i(m.view, v, n) <= 3 ? 0 : 1) + (grid_j(m.view, v, n) <= 3 ? 0 : 2);
+  DualMesh d = build_dual_mesh(m.view, labels, 4, vertex_centroids(m.view, labels, 4), {.close_hole_perimeter = 1.0});
+  EXPECT_EQ(d.holes_closed, 1u);
+  EXPECT_EQ(expect_sources_locate_strip_vertices(m.view, d).count(4), 1u) << "no centroid of the 4-vertex hole";
 }
 
 TEST(DualMesh, DuplicateFacesAreRemoved) {
@@ -198,6 +248,7 @@ TEST(DualMesh, BoundaryStripVerticesFollowClusterChangesAlongTheBoundary) {
     EXPECT_TRUE(t.consistently_oriented);
     EXPECT_EQ(t.isolated_vertices, 0u);
     EXPECT_TRUE(find_manifold_defects(d.mesh.view()).empty());
+    expect_sources_locate_strip_vertices(m.view, d);
   }
   // Two clusters around the boundary: the strip would fold, the loop is closed instead.
   std::vector<int32_t> halves(m.view.vertex_count());
@@ -326,23 +377,43 @@ TEST(ManifoldDefects, FlagsIsolatedAndDegenerate) {
   EXPECT_EQ(defects_of(points(4), {0, 1, 2, 3, 3, 1}), (Ids{1, 3}));
 }
 
-// remove_manifold_defects must leave a defect-free mesh and keep cluster ids with their vertices.
-void expect_removal_cleans(MeshBuffers m, const std::string& what, uint64_t expect_vertices_removed_at_least) {
+// The dual of a soup for the removal tests: vertex v of cluster `cluster` (v when −1), lying at
+// input vertex 2v (odd vertices a strip's: source {2v, 2v + 1}), so both travel with it.
+DualMesh dual_of(MeshBuffers m, int32_t cluster = -1) {
+  DualMesh d;
+  d.mesh = std::move(m);
+  for (uint32_t v = 0; v < d.mesh.vertex_count(); ++v) {
+    d.cluster_of_output_vertex.push_back(cluster >= 0 ? cluster : int32_t(v));
+    d.source_of_output_vertex.push_back({uint32_t(d.source_vertices.size()), v % 2 ? 2u : 1u});
+    d.source_vertices.push_back(2 * v);
+    if (v % 2) d.source_vertices.push_back(2 * v + 1);
+  }
+  return d;
+}
+
+// remove_manifold_defects must leave a defect-free mesh and keep cluster ids and sources with
+// their vertices.
+void expect_removal_cleans(const MeshBuffers& input, const std::string& what, uint64_t expect_vertices_removed_at_least) {
   SCOPED_TRACE(what);
-  ASSERT_FALSE(find_manifold_defects(m.view()).empty()) << "test mesh has no defect";
-  const std::vector<float> original = m.positions;
-  std::vector<int32_t> ids(m.vertex_count());
-  std::iota(ids.begin(), ids.end(), 0);
+  ASSERT_FALSE(find_manifold_defects(input.view()).empty()) << "test mesh has no defect";
+  const std::vector<float> original = input.positions;
+  DualMesh d = dual_of(input);
+  const MeshBuffers& m = d.mesh;
+  const std::vector<int32_t>& ids = d.cluster_of_output_vertex;
   const uint64_t faces_before = m.face_count();
-  DefectRemoval r = remove_manifold_defects(m, ids);
+  DefectRemoval r = remove_manifold_defects(d);
   EXPECT_TRUE(find_manifold_defects(m.view()).empty());
   ASSERT_EQ(ids.size(), m.vertex_count());
+  ASSERT_EQ(d.source_of_output_vertex.size(), m.vertex_count());
   EXPECT_EQ(m.face_count() + r.faces_removed, faces_before);
   EXPECT_GE(r.vertices_removed, expect_vertices_removed_at_least);
   EXPECT_GT(m.face_count(), 0u) << "removal deleted the whole mesh";
   for (uint32_t v = 0; v < m.vertex_count(); ++v) {
     ASSERT_GE(ids[v], 0);
     for (int k = 0; k < 3; ++k) EXPECT_EQ(m.positions[3 * v + k], original[3 * size_t(ids[v]) + k]);
+    const VertexSource s = d.source_of_output_vertex[v];
+    ASSERT_EQ(s.count, ids[v] % 2 ? 2u : 1u);
+    EXPECT_EQ(d.source_vertices[s.begin], 2u * uint32_t(ids[v]));
   }
   for (uint32_t i : m.triangles) EXPECT_LT(i, m.vertex_count());
   TopologyStats t = compute_topology_stats(m.view());
@@ -376,14 +447,13 @@ TEST(ManifoldDefects, RemovalLeavesADefectFreeMesh) {
   {  // isolated vertex
     MeshBuffers m = sphere;
     m.positions.insert(m.positions.end(), {5, 5, 5});
-    DefectRemoval r{};
-    std::vector<int32_t> ids(m.vertex_count());
-    std::iota(ids.begin(), ids.end(), 0);
-    r = remove_manifold_defects(m, ids);
+    DualMesh d = dual_of(m);
+    const DefectRemoval r = remove_manifold_defects(d);
     EXPECT_EQ(r.faces_removed, 0u);
     EXPECT_EQ(r.vertices_removed, 1u);
-    EXPECT_EQ(m.vertex_count(), V);
-    EXPECT_TRUE(find_manifold_defects(m.view()).empty());
+    EXPECT_EQ(d.mesh.vertex_count(), V);
+    EXPECT_EQ(d.source_of_output_vertex.size(), V);
+    EXPECT_TRUE(find_manifold_defects(d.mesh.view()).empty());
   }
   {  // all of them at once, plus a degenerate face
     MeshBuffers m = sphere;
@@ -393,12 +463,11 @@ TEST(ManifoldDefects, RemovalLeavesADefectFreeMesh) {
     expect_removal_cleans(m, "everything", 3);
   }
   {  // a clean mesh is left untouched
-    MeshBuffers m = sphere;
-    std::vector<int32_t> ids(V, 7);
-    DefectRemoval r = remove_manifold_defects(m, ids);
+    DualMesh d = dual_of(sphere, 7);
+    const DefectRemoval r = remove_manifold_defects(d);
     EXPECT_EQ(r.faces_removed, 0u);
     EXPECT_EQ(r.vertices_removed, 0u);
-    EXPECT_EQ(m.triangles, sphere.triangles);
+    EXPECT_EQ(d.mesh.triangles, sphere.triangles);
   }
 }
 

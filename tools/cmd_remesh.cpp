@@ -3,8 +3,10 @@
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <memory>
+#include <string>
 
 #include "core/errors.h"
 #include "streaming/mesh_io.h"
@@ -24,6 +26,7 @@ namespace {
 
 struct RemeshArgs {
   std::string input, output, report, subdivide = "auto", small_components = "keep", metric = "IQ", algorithm = "cvd";
+  std::string attributes = "all";
   int curvature_rings = 3;
   double gradation = 0, qem_threshold = ClusteringOptions{}.qem_threshold;
   uint32_t vertices = 10000;
@@ -104,6 +107,37 @@ std::string failed_checks(const nlohmann::json& checks) {
   return out;
 }
 
+// --attributes: all, none, or a comma-separated list of names.
+void parse_attributes(const std::string& text, PipelineOptions& options) {
+  if (text == "all") {
+    options.attributes = ReadOptions::Attributes::All;
+    return;
+  }
+  if (text == "none") {
+    options.attributes = ReadOptions::Attributes::None;
+    return;
+  }
+  options.attributes = ReadOptions::Attributes::Named;
+  for (size_t begin = 0;;) {
+    const size_t end = std::min(text.find(',', begin), text.size());
+    const std::string name = text.substr(begin, end - begin);
+    if (name.empty() || name.find_first_of(" \t") != std::string::npos)
+      throw InputError("--attributes: expected all, none or comma-separated names, got '" + text + "'");
+    options.attribute_names.push_back(name);
+    if (end == text.size()) break;
+    begin = end + 1;
+  }
+}
+
+// The report's attributes: those carried (input names and types) and those the output's format
+// holds.
+nlohmann::json attributes_json(const PipelineResult& r, const std::string& output) {
+  nlohmann::json carried = nlohmann::json::array(), written = nlohmann::json::array();
+  for (const VertexAttribute& a : r.attributes) carried.push_back({{"name", a.name}, {"type", scalar_type_name(a.type)}});
+  for (size_t k : attributes_written(format_from_path(output), r.attributes)) written.push_back(r.attributes[k].name);
+  return {{"carried", carried}, {"written", written}, {"normals", "not carried (not written)"}};
+}
+
 }  // namespace
 
 void add_remesh_command(CLI::App& app) {
@@ -150,6 +184,13 @@ void add_remesh_command(CLI::App& app) {
                 "Output vertices at the raw cluster centroids (eq. 15) instead of projected onto the input surface");
   cmd->add_flag("--no-optimize", args->no_optimize,
                 "Skip the quality post-pass (edge flips between nearly coplanar triangles, tangential relaxation)");
+  cmd->add_option("--attributes", args->attributes,
+                  "Vertex attributes carried to the output as area-weighted means over each cluster: all, none, or "
+                  "names separated by commas (e.g. red,green,blue,confidence). PLY output keeps their names and types "
+                  "(integers rounded and clamped); OBJ gets the colours as 'v x y z r g b' in [0,1] and drops the "
+                  "other scalars; OFF and STL drop them all. Normals (nx ny nz) are never carried: the output has "
+                  "none (recompute them from its faces)")
+      ->capture_default_str();
   cmd->add_flag("--ascii", args->ascii, "Write ascii PLY");
   cmd->add_flag("-q,--quiet", args->quiet, "No summary on stderr");
   cmd->add_option("--threads", args->threads,
@@ -195,6 +236,7 @@ void add_remesh_command(CLI::App& app) {
         throw InputError("--subdivide: expected auto, none or a level 0-6, got '" + args->subdivide + "'");
       }
     }
+    parse_attributes(args->attributes, options);
     format_from_path(args->output);  // reject an unknown output extension before the work
     install_signal_cleanup();
     std::unique_ptr<tbb::global_control> thread_limit;
@@ -223,6 +265,7 @@ void add_remesh_command(CLI::App& app) {
     WriteOptions write_options;
     write_options.ascii = args->ascii;
     write_options.comment = "streamcvd remesh -n " + std::to_string(args->vertices) + " --seed " + std::to_string(args->seed);
+    if (!r.attributes.empty()) write_options.attributes = {r.attributes, r.remesh.vertex_attributes};
     write_mesh(args->output, r.remesh.mesh.view(), write_options);
     double write_seconds = now_seconds() - t_write;
     double total = now_seconds() - t0;
@@ -264,6 +307,7 @@ void add_remesh_command(CLI::App& app) {
                       {"clustering_cpu", rm.seconds.clustering_cpu},
                       {"repair", rm.seconds.repair},      {"dual", rm.seconds.dual},         {"optimize", rm.seconds.optimize},
                       {"placement", rm.seconds.placement}, {"checks", rm.seconds.checks},
+                      {"attributes", rm.seconds.attributes},
                       {"summary", r.summary_seconds},
                       {"write", write_seconds},           {"total", total}};
       j["clustering"] = {{"clusters", rm.clusters},
@@ -299,6 +343,7 @@ void add_remesh_command(CLI::App& app) {
                      {"holes_closed", rm.holes_closed},
                      {"duplicate_faces_removed", rm.duplicate_faces_removed},
                      {"components", r.output_topology.components}};
+      j["attributes"] = attributes_json(r, args->output);
       j["quality"] = quality_json(r.output_quality);
       j["checks"] = checks;
       j["peak_rss_bytes"] = peak_rss_bytes();

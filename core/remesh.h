@@ -13,6 +13,7 @@
 #include "core/mesh_buffers.h"
 #include "core/mesh_optimize.h"
 #include "core/mesh_view.h"
+#include "core/progress.h"
 
 namespace streamcvd {
 
@@ -44,6 +45,9 @@ struct RemeshOptions {
   /// copied into RAM when the job's storage is a work space; a job that only writes the output
   /// mesh turns this off, so nothing V-sized outlives the clustering.
   bool keep_vertex_labels = true;
+  /// Stage by stage progress (core/progress.h): each stage's start and end, the chunks it has
+  /// visited, the clustering's loops. Empty = none, and no cost.
+  ProgressCallback progress;
 };
 
 struct StageTimes {

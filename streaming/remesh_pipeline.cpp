@@ -40,6 +40,10 @@ uint64_t resident_budget(uint64_t limit, uint64_t work_ram_bytes) {
   if (limit == 0) return ~uint64_t(0);
   return std::max<uint64_t>(limit > work_ram_bytes ? limit - work_ram_bytes : 0, 64ull << 20);
 }
+
+void report(const PipelineOptions& options, const StageProgress& p) {
+  if (options.progress) options.progress(p);
+}
 }  // namespace
 
 InputSummary summarize_input(const MeshView& mesh, uint64_t components) {
@@ -66,9 +70,11 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   const std::string work = options.work_directory.empty() ? default_work_directory() : options.work_directory;
   MeshView view = store.view();
   result.subdivision_levels = subdivision_levels(view.vertex_count(), options.remesh.vertices, options.subdivide);
+  const uint64_t levels = uint64_t(result.subdivision_levels);
   // Subdivision streams each level from the current store into the builder (RAM or work files).
   MeshStore subdivided;
   for (int level = 0; level < result.subdivision_levels; ++level) {
+    report(options, {"subdivide", uint64_t(level), levels, "levels"});
     const auto t = std::chrono::steady_clock::now();
     StoreBuildOptions build;
     build.memory_limit = options.memory_limit;
@@ -80,6 +86,7 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
     view = subdivided.view();
     result.subdivide_seconds += seconds_since(t);
   }
+  if (levels > 0) report(options, {.stage = "subdivide", .done = levels, .total = levels, .unit = "levels", .finished = true});
   result.remeshed_vertices = view.vertex_count();
   result.remeshed_faces = view.face_count();
   RemeshOptions remesh_options = options.remesh;
@@ -97,6 +104,7 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   }
   remesh_options.clustering.storage = &space;
   remesh_options.keep_vertex_labels = false;  // only the output mesh leaves the job
+  remesh_options.progress = options.progress;
   result.remesh = remesh(view, remesh_options, space);
   result.work_file_peak_bytes = space.peak_file_bytes();
   if (scheduler) result.schedule = scheduler->report();
@@ -121,11 +129,14 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
   PipelineOptions o = options;
   std::string kept;
   if (is_store_directory(input)) {
+    report(o, {"open"});
     store = MeshStore::open(input);
-    store.validate_all();
+    store.validate_all();  // every chunk read once: a long stage for a big store
+    report(o, {.stage = "open", .done = store.view().face_count(), .unit = "faces", .finished = true});
     if (o.work_directory.empty()) o.work_directory = input;  // work files beside the store
     load_seconds = seconds_since(t);
   } else {
+    report(o, {"ingest"});
     StoreBuildOptions build;
     build.memory_limit = o.memory_limit;
     build.work_directory = o.work_directory.empty() ? default_work_directory() : o.work_directory;
@@ -138,6 +149,7 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
       store = MeshStore::build_from_file(input, build, {}, nullptr, o.progress);
     }
     store_seconds = seconds_since(t);
+    report(o, {.stage = "ingest", .done = store.view().face_count(), .unit = "faces", .finished = true});
   }
   PipelineResult result;
   try {

@@ -27,8 +27,9 @@ struct PipelineOptions {
   /// A file input's store is written as a named store in the work folder and kept, so that a
   /// rerun can start from it (`remesh STORE`).
   bool keep_work = false;
-  /// Progress of the store build of a file input, and of the stages.
-  std::function<void(const BuildProgress&)> progress;
+  /// Progress (core/progress.h) of the store's opening or build ("open", "ingest" and the
+  /// build's own stages), of "subdivide" and of the remesh stages. Empty = none.
+  ProgressCallback progress;
 };
 
 struct InputSummary {

@@ -68,6 +68,7 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   PipelineResult result;
   result.memory_limit = options.memory_limit;
   const std::string work = options.work_directory.empty() ? default_work_directory() : options.work_directory;
+  result.work_directory = work;
   MeshView view = store.view();
   result.subdivision_levels = subdivision_levels(view.vertex_count(), options.remesh.vertices, options.subdivide);
   const uint64_t levels = uint64_t(result.subdivision_levels);
@@ -85,6 +86,7 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
     subdivided = std::move(next);
     view = subdivided.view();
     result.subdivide_seconds += seconds_since(t);
+    if (subdivided.ram_bytes() == 0) result.temporary_store_bytes += subdivided.size_bytes();
   }
   if (levels > 0) report(options, {.stage = "subdivide", .done = levels, .total = levels, .unit = "levels", .finished = true});
   result.remeshed_vertices = view.vertex_count();
@@ -128,7 +130,8 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
   double load_seconds = 0, store_seconds = 0;
   PipelineOptions o = options;
   std::string kept;
-  if (is_store_directory(input)) {
+  const bool from_store = is_store_directory(input);
+  if (from_store) {
     report(o, {"open"});
     store = MeshStore::open(input);
     store.validate_all();  // every chunk read once: a long stage for a big store
@@ -161,6 +164,8 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
   result.store_seconds += store_seconds;
   result.store_in_ram = store.ram_bytes() > 0 || store.view().vertex_count() == 0;
   result.kept_store = kept;
+  // A file input's store mapped from anonymous work files (a kept store is a result, not scratch).
+  if (!from_store && kept.empty() && store.ram_bytes() == 0) result.temporary_store_bytes += store.size_bytes();
   return result;
 }
 

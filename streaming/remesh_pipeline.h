@@ -52,6 +52,10 @@ struct PipelineResult {
   uint64_t memory_limit = 0;       ///< the limit planned with
   uint64_t work_ram_bytes = 0;     ///< budget of the per-vertex arrays in RAM
   uint64_t work_file_peak_bytes = 0;  ///< largest total of mapped work files at once
+  /// Total bytes of the stores built in anonymous work files (a file input's temporary store,
+  /// subdivided levels): a bound on what the work folder held besides the work files.
+  uint64_t temporary_store_bytes = 0;
+  std::string work_directory;      ///< the folder of the work files
   bool store_in_ram = true;        ///< the (temporary or subdivided) store was built in RAM
   std::string kept_store;          ///< keep_work: the store left in the work folder
   /// Chunk visits per stage and releases, when the remeshed store was mapped from files (a store

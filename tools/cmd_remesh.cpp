@@ -302,13 +302,16 @@ void add_remesh_command(CLI::App& app) {
                      {"peak_source", peak.source == PeakSource::Cgroup ? "cgroup" : "rss"},
                      {"work_ram_budget_bytes", r.work_ram_bytes == ~uint64_t(0) ? 0 : r.work_ram_bytes},
                      {"work_file_peak_bytes", r.work_file_peak_bytes},
+                     {"temporary_store_bytes", r.temporary_store_bytes},
+                     {"work_directory", r.work_directory},
                      {"store_in_ram", r.store_in_ram}};
       j["io"] = {{"read_bytes", io1.read_bytes - io0.read_bytes}, {"write_bytes", io1.write_bytes - io0.write_bytes}};
-      if (!r.schedule.stages.empty()) {
+      {  // Always there, so that scripts read one shape: a store in RAM has no scheduler, no stages.
         nlohmann::json stages = nlohmann::json::object();
         for (const StageVisits& s : r.schedule.stages)
           stages[s.stage] = {{"visits", s.visits}, {"vertices", s.vertices}, {"chunks_fetched", s.chunks_fetched}};
-        j["chunk_visits"] = {{"chunks", r.schedule.chunks},
+        j["chunk_visits"] = {{"scheduled", !r.schedule.stages.empty()},
+                             {"chunks", r.schedule.chunks},
                              {"resident_budget_bytes", r.schedule.resident_budget_bytes == ~uint64_t(0) ? 0 : r.schedule.resident_budget_bytes},
                              {"chunks_released", r.schedule.chunks_released},
                              {"stages", stages}};

@@ -17,6 +17,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <optional>
 
 namespace streamcvd {
 
@@ -143,7 +144,15 @@ void hand_over_vertex_labels(bool keep, LargeArray<int32_t>& labels, RemeshResul
 
 }  // namespace
 
-RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArrayStorage& storage) {
+RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArrayStorage& storage) {
+  // With a display, every range visit of the stages goes through the reporter (per chunk, never
+  // per vertex); without one the stages see the caller's view as it is.
+  std::optional<StageReporter> progress;
+  if (options.progress) progress.emplace(options.progress, input);
+  const MeshView& mesh = progress ? progress->view() : input;
+  auto stage = [&](const char* name) {
+    if (progress) progress->begin(name);
+  };
   RemeshResult result;
   auto t = std::chrono::steady_clock::now();
   const Metric metric = options.clustering.metric;
@@ -151,6 +160,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   std::vector<float> sampling_density;  // A/AQ: the metric's area factor, for the initial sampling
   std::vector<float> tensors;
   if (options.gradation != 0 || is_anisotropic(metric)) {
+    stage("curvature");
     CurvatureOptions curvature_options;
     curvature_options.rings = options.curvature_rings;
     const Curvature curvature = compute_curvature(mesh, curvature_options);
@@ -169,6 +179,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
         for (size_t v = 0; v < density.size(); ++v) sampling_density[v] *= density[v];
     }
   }
+  stage("items");
   t = std::chrono::steady_clock::now();
   // The anisotropic energy is area-weighted (the tensors carry the curvature); the gradation
   // density then only shapes the initial sampling, as in the paper's A/AQ (§VII).
@@ -185,17 +196,29 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   // components by the budget.
   const bool lloyd = options.clustering.algorithm == ClusteringOptions::Algorithm::Lloyd;
   LargeArray<int32_t> labels;
+  ClusteringOptions clustering = options.clustering;
+  uint32_t loops = 0;  // over every pass: the display counts the stage's loops
+  if (progress)
+    clustering.on_loop = [&progress, &loops, user = options.clustering.on_loop](bool constrained, uint32_t loop,
+                                                                               uint64_t moves) {
+      if (user) user(constrained, loop, moves);
+      progress->round(++loops + 1, "loop");
+    };
   auto sample_and_cluster = [&](uint32_t clusters) {
+    stage("sampling");
     auto t0 = std::chrono::steady_clock::now();
     result.budget = plan_component_budget(mesh, items, clusters, options.small_components, storage);
     labels.reset();  // a second pass: the first one's labels go before the new ones come
     labels = initial_sampling(mesh, is_anisotropic(metric) ? sampling_items : items, result.budget, options.seed, storage);
     result.seconds.sampling += seconds_since(t0);
+    stage("clustering");
     t0 = std::chrono::steady_clock::now();
     const double cpu0 = process_cpu_seconds();
     const uint32_t K = result.budget.total_clusters;
-    result.clustering = lloyd ? lloyd_clustering(mesh, items, labels, K, lloyd_options(options.clustering))
-                              : minimize_clustering(mesh, items, labels, K, options.clustering);
+    if (progress) progress->round(loops + 1, "loop");
+    result.clustering = lloyd ? lloyd_clustering(mesh, items, labels, K, lloyd_options(clustering))
+                              : minimize_clustering(mesh, items, labels, K, clustering);
+    if (progress) progress->round(std::max(loops, 1u), "loop");  // the last loop ran, no next one
     result.seconds.clustering += seconds_since(t0);
     result.seconds.clustering_cpu += process_cpu_seconds() - cpu0;
   };
@@ -217,6 +240,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   repair_options.clustering = options.clustering;
   repair_options.relax = !lloyd;  // a Lloyd run's report stays pure Lloyd
   auto repair_clustering = [&](uint32_t target_vertices) {
+    stage("repair");
     repair_options.target_vertices = target_vertices;
     // Compensating merges/splits of the repair stay in components with many clusters.
     const std::vector<uint8_t> adjustable = clusters_in_large_components(labels, result.budget, K, 64);
@@ -251,6 +275,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   }
   const DefectRepairResult repair = repair_clustering(target);
   sampling_items = ItemData{};
+  stage("dual");
   t = std::chrono::steady_clock::now();
   // The sites of the final clustering under its metric: centroid, anisotropic centroid, or
   // QEM point. Computed once, for the dual and for the final placement below.
@@ -265,6 +290,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
                          " boundary-strip vertices could not be brought to N exactly within the repair rounds";
   std::vector<uint32_t> defects = find_manifold_defects(dual.mesh.view());
   result.seconds.dual += seconds_since(t);
+  stage("placement");
   t = std::chrono::steady_clock::now();
   // Final placement (defects do not depend on positions, so it is done once, here). QEM sites
   // already lie on the surface's features; centroids are projected onto the surface.
@@ -289,6 +315,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   result.defect_vertices = defects.size();
   result.seconds.placement = seconds_since(t);
   if (options.optimize_quality) {  // flips keep V, F, boundary and genus; moves stay on the input
+    stage("optimize");
     t = std::chrono::steady_clock::now();
     MeshOptimizeOptions optimize = options.optimize;
     if (!options.project_to_surface) optimize.relax_iterations = 0;  // raw centroids asked for: flips only
@@ -308,6 +335,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
     result.quality_moves = q.moves;
     result.seconds.optimize = seconds_since(t);
   }
+  stage("checks");
   t = std::chrono::steady_clock::now();
   {  // safety net: collinear float32 vertices (a cluster vertex on a strip chord) give flat faces
     const FlatFaceRepair flat = repair_flat_faces(dual.mesh.positions, dual.mesh.triangles);
@@ -338,6 +366,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   result.clusters_connected = clusters_connected(mesh, labels, K);
   result.seconds.checks = seconds_since(t);
   if (!options.attributes.empty()) {  // after every edit of the output's vertex set, while the labels exist
+    stage("attributes");
     t = std::chrono::steady_clock::now();
     const std::vector<float> means = cluster_attribute_means(mesh, labels, K, options.attributes);
     result.vertex_attributes = output_vertex_attributes(means, dual, options.attributes);
@@ -345,6 +374,7 @@ RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArraySto
   }
   result.mesh = std::move(dual.mesh);
   hand_over_vertex_labels(options.keep_vertex_labels, labels, result);
+  if (progress) progress->finish();
   return result;
 }
 

@@ -13,6 +13,7 @@
 #include "core/mesh_buffers.h"
 #include "core/mesh_optimize.h"
 #include "core/mesh_view.h"
+#include "core/progress.h"
 #include "core/vertex_attributes.h"
 
 namespace streamcvd {
@@ -48,6 +49,9 @@ struct RemeshOptions {
   /// Per-vertex values (colours, scalars) carried to the output as area-weighted cluster means
   /// (core/vertex_attributes.h); empty: none.
   VertexAttributeColumns attributes;
+  /// Stage by stage progress (core/progress.h): each stage's start and end, the chunks it has
+  /// visited, the clustering's loops. Empty = none, and no cost.
+  ProgressCallback progress;
 };
 
 struct StageTimes {

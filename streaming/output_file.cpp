@@ -136,6 +136,13 @@ void ignore_file_size_signal() {
   });
 }
 
+std::string work_file_problem(int err) {
+  std::string problem = std::strerror(err);
+  if (err == ENOSPC || err == EDQUOT || err == EFBIG)
+    problem += " (work folder full or at a file size limit: free space, or choose another with --work-dir)";
+  return problem;
+}
+
 void set_anonymous_temp_files(bool enabled) { g_anonymous.store(enabled); }
 
 void install_signal_cleanup() {

@@ -146,6 +146,11 @@ void set_anonymous_temp_files(bool enabled);
 /// limit (`ulimit -f`) surfaces as an EFBIG write error instead of killing the process.
 void ignore_file_size_signal();
 
+/// strerror(err) for a work file that could not be created or written; a full folder (ENOSPC,
+/// EDQUOT) or a file size limit (EFBIG) gets the way out: "...: free space or choose another
+/// with --work-dir".
+std::string work_file_problem(int err);
+
 /// Removes every live temporary file of this process. Async-signal-safe (only unlinkat over a
 /// fixed registry), for applications that install their own signal handlers.
 void remove_temp_files_now() noexcept;

@@ -40,6 +40,7 @@ uint64_t resident_budget(uint64_t limit, uint64_t work_ram_bytes) {
   if (limit == 0) return ~uint64_t(0);
   return std::max<uint64_t>(limit > work_ram_bytes ? limit - work_ram_bytes : 0, 64ull << 20);
 }
+
 // The columns of `available` that options select, in the order given (file order for All).
 // Throws InputError for a name the input lacks, listing those it has.
 std::vector<uint32_t> selected_attribute_columns(const std::vector<VertexAttribute>& available, const PipelineOptions& options) {
@@ -62,6 +63,11 @@ std::vector<uint32_t> selected_attribute_columns(const std::vector<VertexAttribu
   }
   return columns;
 }
+
+void report(const PipelineOptions& options, const StageProgress& p) {
+  if (options.progress) options.progress(p);
+}
+
 }  // namespace
 
 InputSummary summarize_input(const MeshView& mesh, uint64_t components) {
@@ -86,14 +92,17 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   PipelineResult result;
   result.memory_limit = options.memory_limit;
   const std::string work = options.work_directory.empty() ? default_work_directory() : options.work_directory;
+  result.work_directory = work;
   MeshView view = store.view();
   const std::vector<uint32_t> columns = selected_attribute_columns(store.attributes(), options);
   for (uint32_t k : columns) result.attributes.push_back(store.attributes()[k]);
   result.subdivision_levels = subdivision_levels(view.vertex_count(), options.remesh.vertices, options.subdivide);
+  const uint64_t levels = uint64_t(result.subdivision_levels);
   // Subdivision streams each level from the current store into the builder (RAM or work files),
   // with the attributes when any is carried (midpoints get their edge's mean).
   MeshStore subdivided;
   for (int level = 0; level < result.subdivision_levels; ++level) {
+    report(options, {"subdivide", uint64_t(level), levels, "levels"});
     const auto t = std::chrono::steady_clock::now();
     StoreBuildOptions build;
     build.memory_limit = options.memory_limit;
@@ -107,7 +116,9 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
     subdivided = std::move(next);
     view = subdivided.view();
     result.subdivide_seconds += seconds_since(t);
+    if (subdivided.ram_bytes() == 0) result.temporary_store_bytes += subdivided.size_bytes();
   }
+  if (levels > 0) report(options, {.stage = "subdivide", .done = levels, .total = levels, .unit = "levels", .finished = true});
   result.remeshed_vertices = view.vertex_count();
   result.remeshed_faces = view.face_count();
   RemeshOptions remesh_options = options.remesh;
@@ -127,6 +138,7 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
     remesh_options.attributes = {remeshed.vertex_attributes(), remeshed.header().attribute_count, columns};
   remesh_options.clustering.storage = &space;
   remesh_options.keep_vertex_labels = false;  // only the output mesh leaves the job
+  remesh_options.progress = options.progress;
   result.remesh = remesh(view, remesh_options, space);
   result.work_file_peak_bytes = space.peak_file_bytes();
   if (scheduler) result.schedule = scheduler->report();
@@ -150,12 +162,16 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
   double load_seconds = 0, store_seconds = 0;
   PipelineOptions o = options;
   std::string kept;
-  if (is_store_directory(input)) {
+  const bool from_store = is_store_directory(input);
+  if (from_store) {
+    report(o, {"open"});
     store = MeshStore::open(input);
-    store.validate_all();
+    store.validate_all();  // every chunk read once: a long stage for a big store
+    report(o, {.stage = "open", .done = store.view().face_count(), .unit = "faces", .finished = true});
     if (o.work_directory.empty()) o.work_directory = input;  // work files beside the store
     load_seconds = seconds_since(t);
   } else {
+    report(o, {"ingest"});
     StoreBuildOptions build;
     build.memory_limit = o.memory_limit;
     build.work_directory = o.work_directory.empty() ? default_work_directory() : o.work_directory;
@@ -172,6 +188,7 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
       store = MeshStore::build_from_file(input, build, read, nullptr, o.progress);
     }
     store_seconds = seconds_since(t);
+    report(o, {.stage = "ingest", .done = store.view().face_count(), .unit = "faces", .finished = true});
   }
   PipelineResult result;
   try {
@@ -183,6 +200,8 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
   result.store_seconds += store_seconds;
   result.store_in_ram = store.ram_bytes() > 0 || store.view().vertex_count() == 0;
   result.kept_store = kept;
+  // A file input's store mapped from anonymous work files (a kept store is a result, not scratch).
+  if (!from_store && kept.empty() && store.ram_bytes() == 0) result.temporary_store_bytes += store.size_bytes();
   return result;
 }
 

@@ -28,8 +28,9 @@ struct PipelineOptions {
   /// A file input's store is written as a named store in the work folder and kept, so that a
   /// rerun can start from it (`remesh STORE`).
   bool keep_work = false;
-  /// Progress of the store build of a file input, and of the stages.
-  std::function<void(const BuildProgress&)> progress;
+  /// Progress (core/progress.h) of the store's opening or build ("open", "ingest" and the
+  /// build's own stages), of "subdivide" and of the remesh stages. Empty = none.
+  ProgressCallback progress;
   /// Vertex attributes carried to the output as area-weighted cluster means: all the input has
   /// (default), none (a file input's store then keeps none), or those of attribute_names, each of
   /// which the input must have (InputError listing the available ones otherwise).
@@ -59,6 +60,10 @@ struct PipelineResult {
   uint64_t memory_limit = 0;       ///< the limit planned with
   uint64_t work_ram_bytes = 0;     ///< budget of the per-vertex arrays in RAM
   uint64_t work_file_peak_bytes = 0;  ///< largest total of mapped work files at once
+  /// Total bytes of the stores built in anonymous work files (a file input's temporary store,
+  /// subdivided levels): a bound on what the work folder held besides the work files.
+  uint64_t temporary_store_bytes = 0;
+  std::string work_directory;      ///< the folder of the work files
   bool store_in_ram = true;        ///< the (temporary or subdivided) store was built in RAM
   std::string kept_store;          ///< keep_work: the store left in the work folder
   /// Chunk visits per stage and releases, when the remeshed store was mapped from files (a store

@@ -31,7 +31,7 @@ ScratchFile::ScratchFile(const std::string& folder) : folder_(folder.empty() ? "
       else if (errno != EEXIST) break;
     }
   }
-  if (fd_ < 0) throw OutputError(error_at(folder_, std::string("cannot create a work file: ") + std::strerror(errno)));
+  if (fd_ < 0) throw OutputError(error_at(folder_, "cannot create a work file: " + work_file_problem(errno)));
   // Reads go through a second open file without O_DIRECT (any alignment); /proc names the
   // anonymous file. dup() would share the O_DIRECT flag.
   read_fd_ = ::open(("/proc/self/fd/" + std::to_string(fd_)).c_str(), O_RDONLY | O_CLOEXEC);
@@ -59,7 +59,7 @@ void ScratchFile::write_at(uint64_t offset, const void* data, size_t n) {
     }
     if (w <= 0)
       throw OutputError(error_at(folder_, "cannot write a work file (at byte " + std::to_string(offset + done) +
-                                              "): " + (w < 0 ? std::strerror(errno) : "no progress")));
+                                              "): " + (w < 0 ? work_file_problem(errno) : "no progress")));
     done += size_t(w);
   }
   uint64_t end = offset + n, seen = size_.load(std::memory_order_relaxed);
@@ -80,7 +80,7 @@ void ScratchFile::append(const void* data, size_t n) {
     }
     if (w <= 0)
       throw OutputError(error_at(folder_, "cannot write a work file (" + std::to_string(size_.load() + done) +
-                                              " bytes written): " + (w < 0 ? std::strerror(errno) : "no progress")));
+                                              " bytes written): " + (w < 0 ? work_file_problem(errno) : "no progress")));
     done += size_t(w);
   }
   size_ += n;

@@ -193,7 +193,7 @@ void stream_file(const std::string& input, MeshSink& builder, const ReadOptions&
                  const std::function<void(const BuildProgress&)>& progress) {
   ReadOptions options = read;
   if (progress && !options.progress)
-    options.progress = [&](uint64_t bytes, uint64_t total) { progress({"read", bytes, total}); };
+    options.progress = [&](uint64_t bytes, uint64_t total) { progress({"read", bytes, total, "bytes"}); };
   // The reader parses on this thread while the builder consumes the previous block on another.
   PipelinedSink pipeline(builder);
   read_mesh_stream(input, pipeline, options);

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "core/mesh_view.h"
+#include "core/progress.h"
 #include "streaming/mesh_reader.h"
 
 namespace streamcvd {
@@ -45,13 +46,10 @@ struct StoreBuildOptions {
   uint32_t max_range_vertices = 1u << 20;
 };
 
-/// Progress of a build: `stage` is "read", "order", "faces", "adjacency"; `done` / `total` in
-/// the stage's own unit (bytes read, vertices, faces, vertex ranges). Called from the building
-/// thread, between blocks.
-struct BuildProgress {
-  const char* stage = "";
-  uint64_t done = 0, total = 0;
-};
+/// Progress of a build (core/progress.h): `stage` is "read", "order", "faces", "adjacency";
+/// `done` / `total` in the stage's own unit (bytes read, vertices, faces, vertex ranges). Called
+/// between blocks, "read" from the reading thread, the others from the building one.
+using BuildProgress = StageProgress;
 
 /// What a build did: the figures `ingest --json` reports.
 struct StoreBuildReport {

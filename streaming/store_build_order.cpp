@@ -356,7 +356,7 @@ void StoreBuilder::State::order_vertices() {
     vertex_count += uint32_t(out_n);
     tick(3);
     emitted += n;
-    report("order", emitted, n_in);
+    report("order", emitted, n_in, "vertices");
   }
   result.report.spilled_bytes += key_records_.bytes_spilled();
   if (std::getenv("STREAMCVD_BUILD_TRACE"))

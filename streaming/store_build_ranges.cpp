@@ -72,7 +72,7 @@ void StoreBuilder::State::add_faces(std::span<const uint32_t> corners) {
   for (size_t i = 0; i < n; ++i) owned_faces->append(range_of[i], &remapped[3 * i]);
   face_count += n;
   result.report.faces_seconds += seconds_since(t0);
-  report("faces", face_count, header.faces != MeshHeaderInfo::kUnknown ? header.faces : face_count);
+  report("faces", face_count, header.faces != MeshHeaderInfo::kUnknown ? header.faces : 0, "faces");  // 0: unknown
 }
 
 void StoreBuilder::State::finish_faces() {
@@ -409,7 +409,7 @@ void RangePass::run() {
     write_range();
     tick(5);
     face_base_ += owned_start_[n_];
-    s_.report("adjacency", r + 1, s_.range_count);
+    s_.report("adjacency", r + 1, s_.range_count, "ranges");
   }
   if (writer_.valid()) writer_.get();
   finish();

@@ -87,8 +87,8 @@ struct StoreBuilder::State {
   void build_ranges();                               // pass 4
   void finish_result();
 
-  void report(const char* stage, uint64_t done, uint64_t total) const {
-    if (progress) progress({stage, done, total});
+  void report(const char* stage, uint64_t done, uint64_t total, const char* unit) const {
+    if (progress) progress({stage, done, total, unit});
     if (trace) note_memory(stage);
   }
   /// STREAMCVD_BUILD_TRACE=1: per-stage peaks of the resident anonymous memory on stderr.

@@ -125,6 +125,17 @@ void MemoryArrayOutput::append(const void* data, size_t n) {
 
 namespace {
 constexpr size_t kStreamBlock = StoreArrayStream::kBlockBytes;  // large enough for full-speed direct I/O
+
+// A scratch array is a work file: when the folder is full, its error says what to do, as the
+// other work files' do (work_file_problem). The file's error carries strerror() only.
+std::string as_work_file_error(const std::string& message) {
+  for (int err : {ENOSPC, EDQUOT, EFBIG}) {
+    const std::string reason = std::strerror(err);
+    const size_t at = message.find(reason);
+    if (at != std::string::npos) return message.substr(0, at) + work_file_problem(err) + message.substr(at + reason.size());
+  }
+  return message;
+}
 }  // namespace
 
 StoreArrayStream::StoreArrayStream(const std::string& path, bool scratch, uint32_t blocks_in_flight)
@@ -159,6 +170,9 @@ void StoreArrayStream::run() {
     }
     try {
       if (!error_) file_->write_direct(job.first, job.second);
+    } catch (const OutputError& e) {
+      std::lock_guard lock(mutex_);
+      error_ = scratch_ ? std::make_exception_ptr(OutputError(as_work_file_error(e.what()))) : std::current_exception();
     } catch (...) {
       std::lock_guard lock(mutex_);
       error_ = std::current_exception();

@@ -65,7 +65,7 @@ void* WorkSpace::allocate(size_t bytes, const char* name) {
   }
   auto fail = [&](const char* what) -> void* {
     throw OutputError(error_at(folder_, std::string("cannot ") + what + " a work file for " + name + " (" +
-                                            std::to_string(bytes) + " bytes): " + std::strerror(errno)));
+                                            std::to_string(bytes) + " bytes): " + work_file_problem(errno)));
   };
   const int fd = create_work_file(folder_);
   if (fd < 0) return fail("create");

@@ -164,6 +164,14 @@ CliResult run_cli(const std::vector<std::string>& args, const CliLimits& limits,
   return r;
 }
 
+/// True once the child `pid` of run_cli has ended, leaving it to be reaped by the runner (for
+/// an on_start that waits for something the child may end without doing). waitid, because
+/// waitpid rejects WNOWAIT with EINVAL.
+inline bool child_ended(pid_t pid) {
+  siginfo_t info{};
+  return ::waitid(P_PID, id_t(pid), &info, WEXITED | WNOHANG | WNOWAIT) == 0 && info.si_pid == pid;
+}
+
 inline CliResult run_cli(const std::vector<std::string>& args, const CliLimits& limits = {}) {
   return run_cli(args, limits, [](pid_t) {});
 }

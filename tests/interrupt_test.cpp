@@ -81,8 +81,7 @@ class Interrupt : public ::testing::Test {
           seen_temp = true;
           break;
         }
-        int status;
-        if (::waitpid(pid, &status, WNOHANG | WNOWAIT) == pid) break;  // ended early: leave it to the runner
+        if (test::child_ended(pid)) break;  // ended early: leave it to the runner
         std::this_thread::sleep_for(std::chrono::microseconds(200));
       }
       ::kill(pid, sig);

@@ -1,7 +1,6 @@
 // `streamcvd remesh`: the main job. Reads a mesh or store, remeshes it to N vertices, writes the
 // output atomically, checks the output guarantees and writes a JSON report.
 #include <tbb/global_control.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -192,7 +191,7 @@ void add_remesh_command(CLI::App& app) {
                   "none (recompute them from its faces)")
       ->capture_default_str();
   cmd->add_flag("--ascii", args->ascii, "Write ascii PLY");
-  cmd->add_flag("-q,--quiet", args->quiet, "No summary on stderr");
+  cmd->add_flag("-q,--quiet", args->quiet, "No summary on stderr (and no progress unless --progress always)");
   cmd->add_option("--threads", args->threads,
                   "Worker threads (store build, items, sorts and the clustering); default all cores. With more "
                   "than one thread the clustering runs in parallel and, without --deterministic, two runs with "
@@ -242,32 +241,26 @@ void add_remesh_command(CLI::App& app) {
     std::unique_ptr<tbb::global_control> thread_limit;
     if (args->threads > 0)
       thread_limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, args->threads);
-    // Progress on a terminal only: batch logs stay clean.
-    if (!args->quiet && ::isatty(2)) {
-      auto start = std::make_shared<double>(now_seconds());
-      options.remesh.clustering.on_loop = [start](bool constrained, uint32_t loop, uint64_t moves) {
-        if (now_seconds() - *start < 1.0) return;
-        std::fprintf(stderr, "\r  clustering: %s pass, loop %u, %llu moves        ", constrained ? "constrained" : "first",
-                     loop, (unsigned long long)moves);
-        if (moves == 0) std::fprintf(stderr, "\n");
-      };
-    }
     options.memory_limit = memory_limit(args->job);
     options.work_directory = args->job.work_dir;
     options.keep_work = args->keep_work;
-    auto progress = std::make_shared<ProgressLine>("remesh", args->job);
-    if (!args->quiet) options.progress = [progress](const BuildProgress& p) { progress->update(p); };
+    // One line per stage on a terminal (or with --progress always): batch logs stay clean, and
+    // -q, which silences the summary, silences the automatic progress too.
+    auto progress = std::make_shared<ProgressLine>("remesh", args->job, args->quiet);
+    if (progress->active()) options.progress = [progress](const StageProgress& p) { progress->update(p); };
     double t0 = now_seconds();
     const IoCounters io0 = read_io_counters();
     PipelineResult r = remesh_path(args->input, options);
-    progress->finish();
     double t_write = now_seconds();
+    progress->update({"write"});
     WriteOptions write_options;
     write_options.ascii = args->ascii;
     write_options.comment = "streamcvd remesh -n " + std::to_string(args->vertices) + " --seed " + std::to_string(args->seed);
     if (!r.attributes.empty()) write_options.attributes = {r.attributes, r.remesh.vertex_attributes};
     write_mesh(args->output, r.remesh.mesh.view(), write_options);
     double write_seconds = now_seconds() - t_write;
+    progress->update({.stage = "write", .done = r.remesh.mesh.face_count(), .unit = "faces", .finished = true});
+    progress->finish();
     double total = now_seconds() - t0;
     bool all_ok = false;
     nlohmann::json checks = guarantee_checks(r, args->vertices, all_ok);
@@ -354,13 +347,16 @@ void add_remesh_command(CLI::App& app) {
                      {"peak_source", peak.source == PeakSource::Cgroup ? "cgroup" : "rss"},
                      {"work_ram_budget_bytes", r.work_ram_bytes == ~uint64_t(0) ? 0 : r.work_ram_bytes},
                      {"work_file_peak_bytes", r.work_file_peak_bytes},
+                     {"temporary_store_bytes", r.temporary_store_bytes},
+                     {"work_directory", r.work_directory},
                      {"store_in_ram", r.store_in_ram}};
       j["io"] = {{"read_bytes", io1.read_bytes - io0.read_bytes}, {"write_bytes", io1.write_bytes - io0.write_bytes}};
-      if (!r.schedule.stages.empty()) {
+      {  // Always there, so that scripts read one shape: a store in RAM has no scheduler, no stages.
         nlohmann::json stages = nlohmann::json::object();
         for (const StageVisits& s : r.schedule.stages)
           stages[s.stage] = {{"visits", s.visits}, {"vertices", s.vertices}, {"chunks_fetched", s.chunks_fetched}};
-        j["chunk_visits"] = {{"chunks", r.schedule.chunks},
+        j["chunk_visits"] = {{"scheduled", !r.schedule.stages.empty()},
+                             {"chunks", r.schedule.chunks},
                              {"resident_budget_bytes", r.schedule.resident_budget_bytes == ~uint64_t(0) ? 0 : r.schedule.resident_budget_bytes},
                              {"chunks_released", r.schedule.chunks_released},
                              {"stages", stages}};

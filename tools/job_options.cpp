@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <vector>
 
 #include "tools/commands.h"
 
@@ -42,47 +43,56 @@ std::string format_bytes(double bytes) {
   return buf;
 }
 
-ProgressLine::ProgressLine(const std::string& command, const JobOptions& options) : command_(command) {
-  active_ = options.progress == "always" || (options.progress == "auto" && ::isatty(STDERR_FILENO));
+ProgressLine::ProgressLine(const std::string& command, const JobOptions& options, bool quiet) : command_(command) {
+  active_ = options.progress == "always" || (options.progress == "auto" && !quiet && ::isatty(STDERR_FILENO));
 }
 
 ProgressLine::~ProgressLine() { finish(); }
 
-void ProgressLine::update(const BuildProgress& p) {
+void ProgressLine::update(const StageProgress& p) {
   if (!active_) return;
+  std::lock_guard lock(mutex_);
   const double now = now_seconds();
   // Stages may interleave (the reader reports bytes while the builder reports faces): each keeps
-  // its own start time, and the line is redrawn at most 10 times a second.
+  // its own start time. The end of a stage is always drawn, the rest at most 10 times a second.
   auto started = stage_starts_.try_emplace(p.stage, now).first;
-  if (now - last_draw_ < 0.1 && p.done < p.total) return;
-  stage_ = p.stage;
+  const bool complete = p.finished || (p.total > 0 && p.done >= p.total);
+  if (now - last_draw_ < 0.1 && !complete) return;
   last_draw_ = now;
-  const double elapsed = std::max(1e-6, now - started->second);
-  const bool bytes = stage_ == "read";
-  std::string line = command_ + ": " + stage_ + " ";
-  char buf[160];
-  if (bytes) {
-    line += format_bytes(double(p.done));
-    if (p.total > 0) {
-      std::snprintf(buf, sizeof buf, " / %s (%.0f %%)", format_bytes(double(p.total)).c_str(), 100.0 * double(p.done) / double(p.total));
-      line += buf;
-    }
-    line += ", " + format_bytes(double(p.done) / elapsed) + "/s";
-  } else {
-    std::snprintf(buf, sizeof buf, "%llu / %llu", (unsigned long long)p.done, (unsigned long long)p.total);
-    line += buf;
+  const double elapsed = now - started->second;
+  const double fraction = p.fraction >= 0 ? p.fraction : p.total > 0 ? double(p.done) / double(p.total) : -1;
+  const bool bytes = std::strcmp(p.unit, "bytes") == 0;
+  auto count = [&](uint64_t n) { return bytes ? format_bytes(double(n)) : std::to_string(n); };
+  std::string line = command_ + ": " + p.stage;
+  std::vector<std::string> parts;  // joined by ", " after the stage name
+  if (p.round > 0) line += std::string(" ") + p.round_unit + " " + std::to_string(p.round);
+  if (p.total > 0 || p.done > 0) {
+    std::string what = count(p.done) + (p.total > 0 ? " / " + count(p.total) : "");
+    if (!bytes && *p.unit) what += std::string(" ") + p.unit;
+    if (!p.finished && fraction >= 0) what += " (" + std::to_string(int(std::min(1.0, fraction) * 100)) + " %)";
+    parts.push_back(what);
   }
-  if (p.total > 0 && p.done > 0 && p.done < p.total) {
-    std::snprintf(buf, sizeof buf, ", ETA %.0f s", elapsed * double(p.total - p.done) / double(p.done));
-    line += buf;
+  char buf[64];
+  if (bytes && elapsed > 0) parts.push_back(format_bytes(double(p.done) / elapsed) + "/s");
+  std::snprintf(buf, sizeof buf, "%.1f s", elapsed);
+  parts.push_back(buf);
+  // An ETA only where the stage's end is known: a single pass with a total, well under way.
+  if (!p.finished && p.round == 0 && fraction > 0 && fraction < 1 && elapsed > 0.5) {
+    std::snprintf(buf, sizeof buf, "ETA %.0f s", elapsed * (1 - fraction) / fraction);
+    parts.push_back(buf);
   }
-  std::fprintf(stderr, "\r%s%*s", line.c_str(), int(width_ > line.size() ? width_ - line.size() : 0), "");
+  for (size_t i = 0; i < parts.size(); ++i) line += (i == 0 && p.round == 0 ? " " : ", ") + parts[i];
+  // A shorter line first blanks the longer one it replaces: no trailing spaces are left.
+  if (line.size() < width_) std::fprintf(stderr, "\r%*s", int(width_), "");
+  std::fprintf(stderr, "\r%s%s", line.c_str(), p.finished ? "\n" : "");
   std::fflush(stderr);
-  width_ = line.size();
+  width_ = p.finished ? 0 : line.size();
 }
 
 void ProgressLine::finish() {
-  if (!active_ || width_ == 0) return;
+  if (!active_) return;
+  std::lock_guard lock(mutex_);
+  if (width_ == 0) return;
   std::fprintf(stderr, "\r%*s\r", int(width_), "");
   std::fflush(stderr);
   width_ = 0;

@@ -8,8 +8,10 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 
+#include "core/progress.h"
 #include "streaming/memory_budget.h"
 #include "streaming/store_build.h"
 
@@ -32,24 +34,34 @@ uint64_t memory_limit(const JobOptions& options);
 /// Limits TBB to --threads for its lifetime (nothing when 0).
 std::unique_ptr<tbb::global_control> thread_limit(const JobOptions& options);
 
-/// A one-line progress display on stderr: "ingest: read 1.2/2.0 GB (60 %), 240 MB/s, ETA 3 s".
-/// Active on a terminal (--progress auto) or when forced (always); never on a pipe or in CI
-/// logs otherwise. Redraws at most 10 times a second; finish() clears the line.
+/// The progress display on stderr, one line per stage, redrawn in place while the stage runs:
+/// "ingest: read 1.2 GB / 2.0 GB (60 %), 240 MB/s, 3.1 s, ETA 2 s",
+/// "remesh: clustering loop 7, 3 / 5 chunks, 12.4 s". A stage reported as finished keeps its
+/// line (its final count and time); finish() clears an unfinished one. Active on a terminal
+/// (--progress auto, unless `quiet`) or when forced (always); never on a pipe or in CI logs
+/// otherwise. Redraws at most 10 times a second; thread-safe (the reader and the builder of a
+/// store report from two threads).
 class ProgressLine {
  public:
-  ProgressLine(const std::string& command, const JobOptions& options);
+  /// Lines start with "<command>: "; `quiet` (-q) turns --progress auto off, not always.
+  ProgressLine(const std::string& command, const JobOptions& options, bool quiet = false);
+  /// Clears an unfinished line (an exception on its way to the one-line error message).
   ~ProgressLine();
-  void update(const BuildProgress& p);
+  /// Redraws the line for `p` (at most 10 times a second unless `p` ends its stage); a
+  /// finished stage's line is ended with a newline and stays. Any thread.
+  void update(const StageProgress& p);
+  /// Clears the unfinished line, if any, before the command prints its own output.
   void finish();
+  /// Whether anything is drawn at all (a job without a display skips the reports).
   bool active() const { return active_; }
 
  private:
   std::string command_;
   bool active_ = false;
-  std::string stage_;
+  std::mutex mutex_;
   std::map<std::string, double> stage_starts_;
   double last_draw_ = 0;
-  size_t width_ = 0;
+  size_t width_ = 0;  // of the unfinished line on screen, 0 = none
 };
 
 /// "12.3 MB", "1.2 GB": decimal units, as throughput figures are quoted.

@@ -645,7 +645,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     // the two chase each other (dragon: 36 rounds instead of 12).
     const int64_t asked = bad.empty() ? change : 0;
     const std::vector<int32_t> touched = repair.round(bad, asked, options.target_vertices != 0, stats);
-    for (int32_t c : touched) result.touched[c] = 1;
+    if (asked == 0) for (int32_t c : touched) result.touched[c] = 1;
     result.repaired_clusters += touched.size();
     result.splits += stats.splits;
     result.merges += stats.merges;

@@ -75,11 +75,24 @@ std::vector<uint32_t> cluster_sizes(const MeshView& mesh, std::span<const int32_
 }
 
 // The owner of face f: its least corner (faces are sorted by owner, DESIGN.md §2).
+namespace {
+
+// The pair {a, b} of two distinct labels, packed smaller first.
+inline uint64_t label_pair(int32_t a, int32_t b) { return uint64_t(std::min(a, b)) << 32 | uint32_t(std::max(a, b)); }
+
+void sort_unique(std::vector<uint64_t>& v) {
+  std::sort(v.begin(), v.end());
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+}
+
+}  // namespace
+
 static uint32_t owner_of(const uint32_t* T, uint64_t f) { return std::min({T[3 * f], T[3 * f + 1], T[3 * f + 2]}); }
 
-Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels) {
+Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, bool neighbour_pairs) {
   const std::vector<FaceRange> blocks = chunk_face_blocks(mesh);
   std::vector<std::vector<Face>> found(blocks.size());
+  std::vector<std::vector<uint64_t>> pairs(neighbour_pairs ? blocks.size() : 0);
   std::vector<uint64_t> emitted(blocks.size(), 0);
   const uint32_t* T = mesh.triangles.data();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
@@ -92,6 +105,15 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels) {
       for (uint64_t f = blocks[i].begin; f < blocks[i].end; ++f)
         if (face_triple(T + 3 * f, labels, t)) out.push_back(t);
       emitted[i] = out.size();
+      if (neighbour_pairs) {  // every input edge is an edge of a face: the faces give them all
+        std::vector<uint64_t>& p = pairs[i];
+        for (uint64_t f = blocks[i].begin; f < blocks[i].end; ++f)
+          for (int k = 0; k < 3; ++k) {
+            const int32_t a = labels[T[3 * f + k]], b = labels[T[3 * f + (k + 1) % 3]];
+            if (a >= 0 && b >= 0 && a != b) p.push_back(label_pair(a, b));
+          }
+        sort_unique(p);
+      }
       // Neighbouring input faces often give the same triple: dedupe early, the merge is smaller.
       std::sort(out.begin(), out.end());
       out.erase(std::unique(out.begin(), out.end()), out.end());
@@ -110,6 +132,13 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels) {
   }
   tbb::parallel_sort(result.faces.begin(), result.faces.end());
   result.faces.erase(std::unique(result.faces.begin(), result.faces.end()), result.faces.end());
+  for (std::vector<uint64_t>& p : pairs) {
+    result.neighbour_pairs.insert(result.neighbour_pairs.end(), p.begin(), p.end());
+    std::vector<uint64_t>().swap(p);
+  }
+  tbb::parallel_sort(result.neighbour_pairs.begin(), result.neighbour_pairs.end());
+  result.neighbour_pairs.erase(std::unique(result.neighbour_pairs.begin(), result.neighbour_pairs.end()),
+                               result.neighbour_pairs.end());
   return result;
 }
 
@@ -144,9 +173,8 @@ std::vector<Face> triples_around(const MeshView& mesh, std::span<const int32_t> 
   return faces;
 }
 
-std::vector<uint64_t> unjoined_cluster_pairs(const MeshView& mesh, std::span<const int32_t> labels,
-                                             uint32_t cluster_count, std::span<const Face> faces,
-                                             std::span<const uint32_t> vertices, bool all) {
+std::vector<uint64_t> unjoined_pairs(std::span<const uint64_t> neighbour_pairs, std::span<const Face> faces,
+                                     uint32_t cluster_count) {
   std::vector<uint64_t> edges;  // dual edges between clusters, packed min << 32 | max
   edges.reserve(3 * faces.size());
   for (const Face& f : faces)
@@ -156,43 +184,32 @@ std::vector<uint64_t> unjoined_cluster_pairs(const MeshView& mesh, std::span<con
     }
   tbb::parallel_sort(edges.begin(), edges.end());
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
-  // Blocks of scanned vertices: the chunks' ranges, or runs of the list. Each block collects
-  // the label pairs of its frontier edges (a pair repeats along a whole frontier: sorted and
-  // made unique first), then keeps those missing from the sorted dual edges by one merge walk.
-  constexpr uint32_t kBlock = 4096;
-  const std::vector<VertexRange> ranges = all ? chunk_vertex_blocks(mesh) : std::vector<VertexRange>{};
-  const size_t blocks = all ? ranges.size() : (vertices.size() + kBlock - 1) / kBlock;
+  std::vector<uint64_t> missing;
+  std::set_difference(neighbour_pairs.begin(), neighbour_pairs.end(), edges.begin(), edges.end(),
+                      std::back_inserter(missing));
+  return missing;
+}
+
+std::vector<uint64_t> neighbour_pairs_around(const MeshView& mesh, std::span<const int32_t> labels,
+                                             std::span<const uint32_t> vertices) {
+  constexpr size_t kBlock = 4096;
+  const size_t blocks = (vertices.size() + kBlock - 1) / kBlock;
   std::vector<std::vector<uint64_t>> found(blocks);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 1), [&](const tbb::blocked_range<size_t>& r) {
-    std::vector<uint64_t> keys;
     for (size_t b = r.begin(); b != r.end(); ++b) {
-      keys.clear();
-      // every_edge: the vertex's edges to any neighbour (a list); else to later vertices only,
-      // as a scan of every vertex sees each edge from both ends.
-      auto scan = [&](uint32_t v, bool every_edge) {
-        const int32_t a = labels[v];
-        if (a < 0) return;
-        for (uint32_t n : mesh.neighbours(v)) {
-          const int32_t c = labels[n];
-          if (c < 0 || c == a || (!every_edge && n < v)) continue;
-          keys.push_back(uint64_t(std::min(a, c)) << 32 | uint32_t(std::max(a, c)));
-        }
-      };
-      if (all) {
-        const RangeVisit visit(mesh, "repair", ranges[b], kReadsNeighbours);
-        for (uint32_t v = ranges[b].begin; v < ranges[b].end; ++v) scan(v, false);
-      } else {
-        for (size_t i = b * kBlock; i < std::min<size_t>(vertices.size(), (b + 1) * size_t(kBlock)); ++i) scan(vertices[i], true);
+      std::vector<uint64_t>& out = found[b];
+      for (size_t i = b * kBlock; i < std::min(vertices.size(), (b + 1) * kBlock); ++i) {
+        const int32_t a = labels[vertices[i]];
+        if (a < 0) continue;
+        for (uint32_t n : mesh.neighbours(vertices[i]))
+          if (labels[n] >= 0 && labels[n] != a) out.push_back(label_pair(a, labels[n]));
       }
-      std::sort(keys.begin(), keys.end());
-      keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
-      std::set_difference(keys.begin(), keys.end(), edges.begin(), edges.end(), std::back_inserter(found[b]));
+      sort_unique(out);  // a pair repeats along a whole frontier
     }
   });
   std::vector<uint64_t> pairs;
   for (const std::vector<uint64_t>& f : found) pairs.insert(pairs.end(), f.begin(), f.end());
-  std::sort(pairs.begin(), pairs.end());
-  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  sort_unique(pairs);
   return pairs;
 }
 

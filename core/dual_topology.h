@@ -59,14 +59,18 @@ std::vector<uint32_t> cluster_sizes(const MeshView& mesh, std::span<const int32_
 struct Triples {
   std::vector<Face> faces;  ///< rotated, sorted, unique
   uint64_t emitted = 0;     ///< input faces with three distinct labels (before deduplication)
+  /// With neighbour_pairs asked for: the cluster pairs {a < b} (packed a << 32 | b) joined by
+  /// an edge of an input face, sorted, unique.
+  std::vector<uint64_t> neighbour_pairs;
 };
 
 /// The dual faces of every input face with three distinct labels: chunk by chunk in parallel
 /// (TBB; each block of a chunk's owned faces sorted and deduplicated on its own), merged in
 /// chunk order and deduplicated by one sort of the K-sized list. The result depends on the
 /// labels only: not on the chunks, the threads or the storage. O(F) reads + O(D log D) for D
-/// dual faces; memory O(D).
-Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels);
+/// dual faces; memory O(D). With `neighbour_pairs`, the same pass also lists the clusters that
+/// meet along an input edge (for unjoined_pairs, no second read of the mesh).
+Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, bool neighbour_pairs = false);
 
 /// The dual faces of the input faces around `vertices` that have a corner in a cluster c with
 /// in_set[c] (size K): every dual face with a corner in the set when `vertices` lists all the
@@ -75,16 +79,20 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels);
 std::vector<Face> triples_around(const MeshView& mesh, std::span<const int32_t> labels,
                                  std::span<const uint32_t> vertices, std::span<const uint8_t> in_set);
 
-/// Pairs of clusters {a, b} (a < b, packed a << 32 | b) joined by an input edge but by no edge
-/// of `faces` (the dual faces, strip faces included; ids ≥ cluster_count are strip vertices):
-/// their frontier meets no third cluster. The dual may stay manifold, yet one input component
-/// gives two output pieces there (a group of clusters ringed by a single one at a thin neck).
-/// Scans the edges of `vertices`, or of every vertex (chunk-parallel) when `all` is set; the
-/// faces must hold every dual face with a corner in a scanned vertex's cluster. Sorted, unique.
-/// O(scanned edges · log D) for D faces; memory O(D). Deterministic.
-std::vector<uint64_t> unjoined_cluster_pairs(const MeshView& mesh, std::span<const int32_t> labels,
-                                             uint32_t cluster_count, std::span<const Face> faces,
-                                             std::span<const uint32_t> vertices, bool all);
+/// Of the cluster pairs `neighbour_pairs` (sorted, packed a << 32 | b, a < b, joined by an input
+/// edge), those joined by no edge of `faces` (the dual faces, strip faces included; ids ≥
+/// cluster_count are strip vertices): their frontier meets no third cluster. The dual may stay
+/// manifold, yet one input component gives two output pieces there (a group of clusters
+/// ringed by a single one at a thin neck). The faces must hold every dual face with a corner in
+/// a cluster of the pairs. Sorted, unique. O(P + D log D); memory O(D). Deterministic.
+std::vector<uint64_t> unjoined_pairs(std::span<const uint64_t> neighbour_pairs, std::span<const Face> faces,
+                                     uint32_t cluster_count);
+
+/// The cluster pairs joined by an edge at one of `vertices` (any order), sorted, unique: the
+/// neighbour_pairs of collect_triples for a part of the mesh. Parallel over blocks of the list.
+/// O(edges of the vertices · log).
+std::vector<uint64_t> neighbour_pairs_around(const MeshView& mesh, std::span<const int32_t> labels,
+                                             std::span<const uint32_t> vertices);
 
 /// Scratch of fan_defective (one per thread).
 struct FanScratch {

@@ -246,16 +246,20 @@ class DefectTracker {
     std::span<const uint32_t> size = members_.sizes();
     // Dual faces with a corner in the set: every face when all clusters are in it.
     std::vector<Triple> faces;
-    std::vector<uint32_t> vertices;  // the set's members (all vertices when `all`)
+    std::vector<uint64_t> neighbour_pairs;  // clusters meeting along an input edge, from the set
     if (all) {
-      faces = dual::collect_triples(mesh_, labels).faces;
+      dual::Triples triples = dual::collect_triples(mesh_, labels, true);
+      faces = std::move(triples.faces);
+      neighbour_pairs = std::move(triples.neighbour_pairs);
     } else {
+      std::vector<uint32_t> vertices;  // the set's members
       std::vector<uint32_t> members;
       for (int32_t c : set_.list()) {
         members_.members(c, members);
         vertices.insert(vertices.end(), members.begin(), members.end());
       }
       faces = dual::triples_around(mesh_, labels, vertices, set_.flags());
+      neighbour_pairs = dual::neighbour_pairs_around(mesh_, labels, vertices);
     }
     uint32_t strip_vertices = 0;
     if (strips_) {
@@ -303,7 +307,7 @@ class DefectTracker {
     // Neighbours in the input with no dual edge between them: the output comes apart along
     // their frontier (e.g. a thin neck ringed by one cluster) although every fan is a disc.
     // Counted apart from the fan defects: the built dual shows no defect there.
-    const std::vector<uint64_t> unjoined = dual::unjoined_cluster_pairs(mesh_, labels, K_, faces, vertices, all);
+    const std::vector<uint64_t> unjoined = dual::unjoined_pairs(neighbour_pairs, faces, K_);
     unjoined_pairs_ = unjoined.size();
     for (uint64_t pair : unjoined)
       for (const int32_t c : {int32_t(pair >> 32), int32_t(uint32_t(pair))}) {
@@ -645,7 +649,10 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     // the two chase each other (dragon: 36 rounds instead of 12).
     const int64_t asked = bad.empty() ? change : 0;
     const std::vector<int32_t> touched = repair.round(bad, asked, options.target_vertices != 0, stats);
-    if (asked == 0) for (int32_t c : touched) result.touched[c] = 1;
+    // Clusters merged for the count are relaxed too: left as they are, the merged pairs are
+    // twice the area of their neighbours (strip plane, N = 400: CV of the cluster areas 0.20
+    // instead of 0.07). Spread over the surface, they make the relaxation visit most chunks.
+    for (int32_t c : touched) result.touched[c] = 1;
     result.repaired_clusters += touched.size();
     result.splits += stats.splits;
     result.merges += stats.merges;

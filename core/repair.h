@@ -59,7 +59,7 @@ struct DefectRepairResult {
   bool relaxed = false;                 ///< a relaxation of the repaired region was kept
   uint64_t defect_vertices = 0;         ///< dual vertices still on a defect at the end
   /// Input-adjacent cluster pairs still without a dual edge at the end (the output would come
-  /// apart along their frontier; see dual::unjoined_cluster_pairs).
+  /// apart along their frontier; see dual::unjoined_pairs).
   uint64_t unjoined_pairs = 0;
   /// target_vertices minus the dual's vertex count at the end (0 when met or no target).
   int64_t vertex_shortfall = 0;
@@ -70,7 +70,7 @@ struct DefectRepairResult {
 
 /// The repair loop: finds the clusters on and around dual-mesh defects (same defects as
 /// find_manifold_defects on the built dual, strips included, plus input-adjacent cluster pairs
-/// with no dual edge, dual::unjoined_cluster_pairs), repairs them (splits in two,
+/// with no dual edge, dual::unjoined_pairs), repairs them (splits in two,
 /// islands dissolved, the cluster count kept by merging light pairs far from any defect or
 /// splitting heavy clusters), and re-checks only the dual around the vertices whose label
 /// changed, until no defect is left or max_rounds. Then relaxes the repaired clusters

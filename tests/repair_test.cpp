@@ -110,7 +110,7 @@ struct RingedGroup {
     uint32_t strip_vertices = 0;
     const std::vector<uint32_t> sizes = dual::cluster_sizes(view, labels, K);
     for (const dual::Face& f : boundary_strip_faces(view, loops, labels, K, sizes, {}, strip_vertices)) faces.push_back(f);
-    return dual::unjoined_cluster_pairs(view, labels, K, faces, {}, true);
+    return dual::unjoined_pairs(dual::collect_triples(view, labels, true).neighbour_pairs, faces, K);
   }
 };
 
@@ -123,7 +123,7 @@ TEST(UnjoinedPairs, AGroupRingedByOneClusterIsFoundAndMeetingClustersAreNot) {
   for (uint32_t v = 0; v < g.view.vertex_count(); ++v)
     if (g.labels[v] == 36 || g.labels[v] == 64) members.push_back(v);
   std::vector<dual::Face> faces = dual::collect_triples(g.view, g.labels).faces;
-  EXPECT_EQ(dual::unjoined_cluster_pairs(g.view, g.labels, RingedGroup::K, faces, members, false), pairs);
+  EXPECT_EQ(dual::unjoined_pairs(dual::neighbour_pairs_around(g.view, g.labels, members), faces, RingedGroup::K), pairs);
 }
 
 TEST(RepairLoop, JoinsAGroupRingedByOneCluster) {

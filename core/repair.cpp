@@ -708,6 +708,9 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   LoopOptions relax = loop_options(options.clustering);
   relax.constrained = true;
   relax.stop_fraction = 0.0;
+  // A few loops: they even out the split halves and merged pairs; more only shave the energy,
+  // and each visits every chunk holding a touched cluster (out of core: a read of the store).
+  relax.max_loops = 4;
   relax.on_loop = {};
   run_clustering_loops(mesh, items, labels, state, relax, report, active);
   for (size_t k = 0; k < frozen_list.size(); ++k)

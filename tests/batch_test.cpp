@@ -30,20 +30,8 @@ using test::CliResult;
 using test::entries;
 using test::run_cli;
 
-// Files of `dir` that process `pid` holds: open descriptors and mappings. The work files are
-// anonymous, so this is the only place they show.
-int work_files_of(pid_t pid, const fs::path& dir) {
-  const std::string prefix = dir.string() + "/";
-  int n = 0;
-  std::error_code ec;
-  for (const auto& fd : fs::directory_iterator("/proc/" + std::to_string(pid) + "/fd", ec)) {
-    const std::string target = fs::read_symlink(fd.path(), ec).string();
-    n += !ec && target.rfind(prefix, 0) == 0;
-  }
-  std::ifstream maps("/proc/" + std::to_string(pid) + "/maps");
-  for (std::string line; std::getline(maps, line);) n += line.find(" " + prefix) != std::string::npos;
-  return n;
-}
+// Work files of `dir` that process `pid` holds (anonymous: descriptors and mappings only).
+int work_files_of(pid_t pid, const fs::path& dir) { return test::files_held_under(pid, dir, true); }
 
 // What process `pid` has written to its stderr so far, once that is the runner's file: right
 // after the fork it is still the test's own stderr, maybe a pipe whose read would block.
@@ -53,31 +41,20 @@ std::string stderr_of(pid_t pid) {
   return ::stat(fd.c_str(), &st) == 0 && S_ISREG(st.st_mode) ? test::slurp(fd) : std::string();
 }
 
-class Batch : public ::testing::Test {
- protected:
+class Batch : public test::SuiteWithMesh<Batch> {
+ public:
+  static constexpr const char* kSuiteName = "batch";
   /// A 1M-vertex, 2M-face torus (~38 MB binary PLY), generated once for the suite: ~10 s of
   /// remesh inside 48M on two cores.
-  static void SetUpTestSuite() {
-    if (!test::cli_available()) return;
-    dir_ = new fs::path(test::temp_dir("batch"));
-    torus_ = new std::string((*dir_ / "torus.ply").string());
-    CliResult r = run_cli({"generate", "torus", "--rings", "1000", "--segments", "1000", "-o", *torus_});
-    ASSERT_EQ(r.exit_code, 0) << r.describe();
-  }
-  static void TearDownTestSuite() {
-    if (dir_) fs::remove_all(*dir_);
-    delete dir_;
-    delete torus_;
-    dir_ = nullptr;
-    torus_ = nullptr;
-  }
+  static void write_suite_mesh(const std::string& path) { test::generate_torus(path, 1000, 1000); }
+
+ protected:
   void SetUp() override {
-    if (!test::cli_available()) GTEST_SKIP() << "STREAMCVD_CLI not built";
-    out_ = test::temp_dir("batch_out");
-    work_ = test::temp_dir("batch_work");
+    SuiteWithMesh::SetUp();
+    if (!IsSkipped()) work_ = test::temp_dir("batch_work");
   }
   void TearDown() override {
-    fs::remove_all(out_);
+    SuiteWithMesh::TearDown();
     fs::remove_all(work_);
   }
 
@@ -107,15 +84,11 @@ class Batch : public ::testing::Test {
     });
   }
 
-  static fs::path* dir_;
-  static std::string* torus_;
-  fs::path out_, work_;
+  fs::path work_;
 };
-fs::path* Batch::dir_ = nullptr;
-std::string* Batch::torus_ = nullptr;
 
 TEST_F(Batch, SignalsInAnOutOfCoreRemeshLeaveNothingAndTheRerunSucceeds) {
-  const std::vector<std::string> args = remesh_args(*torus_);
+  const std::vector<std::string> args = remesh_args(*mesh_);
   struct Case {
     int sig;
     const char* stage;
@@ -164,12 +137,12 @@ TEST_F(Batch, FullWorkFolderIsExitThreeNamingItAndLeavesNothing) {
   // A store ingested beforehand: its remesh fails at the first work file, not in a store build.
   const fs::path store = *dir_ / "torus.store";
   if (!is_store_directory(store.string())) {
-    CliResult r = run_cli({"ingest", *torus_, store.string()});
+    CliResult r = run_cli({"ingest", *mesh_, store.string()});
     ASSERT_EQ(r.exit_code, 0) << r.describe();
   }
   CliLimits limits;
   limits.file_size_bytes = 2 << 20;  // the existing full-disk stand-in (ingest_test): EFBIG past 2 MiB
-  for (const std::string& input : {*torus_, store.string()}) {
+  for (const std::string& input : {*mesh_, store.string()}) {
     SCOPED_TRACE(input);
     std::vector<std::string> args = remesh_args(input);
     args.erase(args.end() - 3, args.end() - 1);  // no --progress always: stderr is the error alone

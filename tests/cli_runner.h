@@ -194,4 +194,58 @@ inline void expect_one_line_error(const CliResult& r, const std::string& path) {
   }
 }
 
+/// Files under `dir` that process `pid` holds: open descriptors and, with `mappings`, mapped
+/// files. Anonymous work and output files (O_TMPFILE, unlinked) show only there (Linux /proc).
+inline int files_held_under(pid_t pid, const std::filesystem::path& dir, bool mappings) {
+  const std::string prefix = dir.string() + "/";
+  int n = 0;
+  std::error_code ec;
+  for (const auto& fd : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/fd", ec)) {
+    const std::string target = std::filesystem::read_symlink(fd.path(), ec).string();
+    n += !ec && target.rfind(prefix, 0) == 0;
+  }
+  if (mappings) {
+    std::ifstream maps("/proc/" + std::to_string(pid) + "/maps");
+    for (std::string line; std::getline(maps, line);) n += line.find(" " + prefix) != std::string::npos;
+  }
+  return n;
+}
+
+/// Writes a torus of rings × segments vertices to `path` with the CLI's generator (binary PLY).
+inline void generate_torus(const std::string& path, int rings, int segments) {
+  CliResult r = run_cli({"generate", "torus", "--rings", std::to_string(rings), "--segments", std::to_string(segments), "-o", path});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+}
+
+/// Base of the CLI suites that share one big generated mesh file: Derived::write_suite_mesh
+/// writes it once per suite (SetUpTestSuite) into a temp folder removed after the suite, and
+/// every test gets a fresh out_ folder, or is skipped when the CLI is not built.
+/// Derived names its folders with kSuiteName.
+template <class Derived>
+class SuiteWithMesh : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (!cli_available()) return;
+    dir_ = new std::filesystem::path(temp_dir(Derived::kSuiteName));
+    mesh_ = new std::string((*dir_ / "torus.ply").string());
+    Derived::write_suite_mesh(*mesh_);
+  }
+  static void TearDownTestSuite() {
+    if (dir_) std::filesystem::remove_all(*dir_);
+    delete dir_;
+    delete mesh_;
+    dir_ = nullptr;
+    mesh_ = nullptr;
+  }
+  void SetUp() override {
+    if (!cli_available()) GTEST_SKIP() << "STREAMCVD_CLI not built";
+    out_ = temp_dir(std::string(Derived::kSuiteName) + "_out");
+  }
+  void TearDown() override { std::filesystem::remove_all(out_); }
+
+  static inline std::filesystem::path* dir_ = nullptr;  ///< the suite's folder
+  static inline std::string* mesh_ = nullptr;           ///< the suite's mesh file
+  std::filesystem::path out_;                           ///< this test's output folder
+};
+
 }  // namespace streamcvd::test

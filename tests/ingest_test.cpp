@@ -57,38 +57,16 @@ bool writes_in(pid_t pid, const fs::path& dir) {
   return false;
 }
 
-class Ingest : public ::testing::Test {
- protected:
+class Ingest : public test::SuiteWithMesh<Ingest> {
+ public:
+  static constexpr const char* kSuiteName = "ingest_suite";
   /// A 1.5M-face binary PLY torus (~28 MB): long enough to interrupt, small enough for CI.
-  static void SetUpTestSuite() {
-    if (!test::cli_available()) return;
-    dir_ = new fs::path(test::temp_dir("ingest_suite"));
-    torus_ = new std::string((*dir_ / "torus.ply").string());
-    write_mesh(*torus_, make_torus(1000, 750).view());
-  }
-  static void TearDownTestSuite() {
-    if (dir_) fs::remove_all(*dir_);
-    delete dir_;
-    delete torus_;
-    dir_ = nullptr;
-    torus_ = nullptr;
-  }
-  void SetUp() override {
-    if (!test::cli_available()) GTEST_SKIP() << "STREAMCVD_CLI not built";
-    out_ = test::temp_dir("ingest_out");
-  }
-  void TearDown() override { fs::remove_all(out_); }
-
-  static fs::path* dir_;
-  static std::string* torus_;
-  fs::path out_;
+  static void write_suite_mesh(const std::string& path) { write_mesh(path, make_torus(1000, 750).view()); }
 };
-fs::path* Ingest::dir_ = nullptr;
-std::string* Ingest::torus_ = nullptr;
 
 TEST_F(Ingest, PipeAndMemoryLimitsGiveByteIdenticalStores) {
   const fs::path a = out_ / "a.store", b = out_ / "b.store", c = out_ / "c.store";
-  CliResult r = run_cli({"ingest", *torus_, a.string(), "--json"});
+  CliResult r = run_cli({"ingest", *mesh_, a.string(), "--json"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   const nlohmann::json j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["faces"], 1500000);
@@ -97,13 +75,13 @@ TEST_F(Ingest, PipeAndMemoryLimitsGiveByteIdenticalStores) {
   EXPECT_GT(j["input_bytes"].get<uint64_t>(), 20000000u);
   // From a pipe, as `cat torus.ply | streamcvd ingest - b.store`.
   CliLimits pipe;
-  pipe.stdin_path = *torus_;
+  pipe.stdin_path = *mesh_;
   pipe.stdin_pipe = true;
   r = run_cli({"ingest", "-", b.string()}, pipe);
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   expect_same_store_files(a, b);
   // A limit small enough for key buckets, many vertex ranges and spilled blocks.
-  r = run_cli({"ingest", *torus_, c.string(), "--memory", "48M", "--json"});
+  r = run_cli({"ingest", *mesh_, c.string(), "--memory", "48M", "--json"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   const nlohmann::json k = nlohmann::json::parse(r.out);
   EXPECT_GT(k["key_buckets"].get<uint32_t>(), 1u);
@@ -114,12 +92,12 @@ TEST_F(Ingest, PipeAndMemoryLimitsGiveByteIdenticalStores) {
 }
 
 TEST_F(Ingest, MemoryBelowTheMinimumIsRefusedNamingIt) {
-  CliResult r = run_cli({"ingest", *torus_, (out_ / "s").string(), "--memory", "20M"});
+  CliResult r = run_cli({"ingest", *mesh_, (out_ / "s").string(), "--memory", "20M"});
   EXPECT_EQ(r.exit_code, 2) << r.describe();
   test::expect_one_line_error(r, "");
   EXPECT_NE(r.err.find("at least"), std::string::npos) << r.err;
   expect_no_store_no_temporaries(out_ / "s");
-  r = run_cli({"ingest", *torus_, (out_ / "s").string(), "--memory", "lots"});
+  r = run_cli({"ingest", *mesh_, (out_ / "s").string(), "--memory", "lots"});
   EXPECT_EQ(r.exit_code, 2) << r.describe();
 }
 
@@ -129,17 +107,17 @@ TEST_F(Ingest, MemoryBelowTheMinimumIsRefusedNamingIt) {
 TEST_F(Ingest, CommandsThatReadAMeshHonourTheMemoryLimit) {
   for (const char* command : {"quality", "render", "distance"}) {
     SCOPED_TRACE(command);
-    std::vector<std::string> args = {command, *torus_};
-    if (std::string(command) == "distance") args.push_back(*torus_);
+    std::vector<std::string> args = {command, *mesh_};
+    if (std::string(command) == "distance") args.push_back(*mesh_);
     if (std::string(command) == "render") args.insert(args.end(), {"-o", (out_ / "x.png").string()});
     args.insert(args.end(), {"--memory", "4M"});
     CliResult r = run_cli(args);
     EXPECT_EQ(r.exit_code, 2) << r.describe();
-    test::expect_one_line_error(r, *torus_);
+    test::expect_one_line_error(r, *mesh_);
     EXPECT_NE(r.err.find("needs more than --memory "), std::string::npos) << r.err;
   }
-  CliResult small = run_cli({"info", *torus_, "--json", "--memory", "48M", "--work-dir", out_.string()});
-  CliResult large = run_cli({"info", *torus_, "--json"});
+  CliResult small = run_cli({"info", *mesh_, "--json", "--memory", "48M", "--work-dir", out_.string()});
+  CliResult large = run_cli({"info", *mesh_, "--json"});
   ASSERT_EQ(small.exit_code, 0) << small.describe();
   ASSERT_EQ(large.exit_code, 0) << large.describe();
   EXPECT_EQ(small.out, large.out);
@@ -148,17 +126,17 @@ TEST_F(Ingest, CommandsThatReadAMeshHonourTheMemoryLimit) {
 
 TEST_F(Ingest, ProgressOnlyWhenAsked) {
   // stderr is a file here, not a terminal: no progress line unless --progress always.
-  CliResult r = run_cli({"ingest", *torus_, (out_ / "s").string()});
+  CliResult r = run_cli({"ingest", *mesh_, (out_ / "s").string()});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   EXPECT_EQ(r.err.find('\r'), std::string::npos) << r.err;
-  r = run_cli({"ingest", *torus_, (out_ / "t").string(), "--progress", "always"});
+  r = run_cli({"ingest", *mesh_, (out_ / "t").string(), "--progress", "always"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   EXPECT_NE(r.err.find("\ringest: "), std::string::npos) << r.err;
 }
 
 TEST_F(Ingest, TruncatedFaceBlockFailsNamingTheByte) {
   const std::string cut = (out_ / "cut.ply").string();
-  fs::copy_file(*torus_, cut);
+  fs::copy_file(*mesh_, cut);
   fs::resize_file(cut, fs::file_size(cut) * 9 / 10);  // inside the face block, after the vertices
   for (const char* memory : {"1G", "48M"}) {
     const fs::path store = out_ / (std::string("s") + memory);
@@ -172,7 +150,7 @@ TEST_F(Ingest, TruncatedFaceBlockFailsNamingTheByte) {
 
 TEST_F(Ingest, IndexOutOfRangeInTheLastFaceFailsNamingIt) {
   const std::string bad = (out_ / "bad.ply").string();
-  fs::copy_file(*torus_, bad);
+  fs::copy_file(*mesh_, bad);
   {  // the last face's last index → 4000000000
     std::fstream f(bad, std::ios::in | std::ios::out | std::ios::binary);
     f.seekp(std::streamoff(fs::file_size(bad) - 4));
@@ -192,7 +170,7 @@ TEST_F(Ingest, FullDiskFailsWithExitThreeAndLeavesNothing) {
   limits.file_size_bytes = 12 << 20;  // positions (9 MB) fit, the face arrays (18 MB) do not
   for (const char* memory : {"1G", "48M"}) {
     const fs::path store = out_ / (std::string("s") + memory);
-    CliResult r = run_cli({"ingest", *torus_, store.string(), "--memory", memory}, limits);
+    CliResult r = run_cli({"ingest", *mesh_, store.string(), "--memory", memory}, limits);
     EXPECT_EQ(r.exit_code, 3) << r.describe();
     test::expect_one_line_error(r, "");
     EXPECT_NE(r.err.find("File too large"), std::string::npos) << r.err;
@@ -206,7 +184,7 @@ TEST_F(Ingest, SignalsMidBuildLeaveNoStoreAndNoTemporaries) {
     const fs::path store = out_ / ("s" + std::to_string(sig));
     // Wait until the build writes files (anonymous ones: only its descriptors show them), then
     // signal it in the middle of the build.
-    CliResult r = run_cli({"ingest", *torus_, store.string(), "--memory", "48M"}, {}, [&](pid_t pid) {
+    CliResult r = run_cli({"ingest", *mesh_, store.string(), "--memory", "48M"}, {}, [&](pid_t pid) {
       const auto t0 = std::chrono::steady_clock::now();
       while (!writes_in(pid, store) && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
         std::this_thread::sleep_for(std::chrono::microseconds(200));

@@ -27,36 +27,16 @@ using test::run_cli;
 bool has_temp_file(pid_t pid, const fs::path& dir) {
   for (const auto& e : fs::directory_iterator(dir))
     if (e.path().filename().string().find(".tmp.") != std::string::npos) return true;
-  std::error_code ec;
-  for (const auto& fd : fs::directory_iterator("/proc/" + std::to_string(pid) + "/fd", ec)) {
-    const std::string target = fs::read_symlink(fd.path(), ec).string();
-    if (!ec && target.rfind(dir.string() + "/", 0) == 0) return true;
-  }
-  return false;
+  return test::files_held_under(pid, dir, false) > 0;
 }
 
-class Interrupt : public ::testing::Test {
- protected:
+class Interrupt : public test::SuiteWithMesh<Interrupt> {
+ public:
+  static constexpr const char* kSuiteName = "interrupt";
   /// A 2.25M-vertex torus (4.5M faces, ~85 MB binary PLY), generated once for the suite.
-  static void SetUpTestSuite() {
-    if (!test::cli_available()) return;
-    dir_ = new fs::path(test::temp_dir("interrupt"));
-    big_ = new std::string((*dir_ / "torus.ply").string());
-    CliResult r = run_cli({"generate", "torus", "--rings", "1500", "--segments", "1500", "-o", *big_});
-    ASSERT_EQ(r.exit_code, 0) << r.describe();
-  }
-  static void TearDownTestSuite() {
-    if (dir_) fs::remove_all(*dir_);
-    delete dir_;
-    delete big_;
-    dir_ = nullptr;
-    big_ = nullptr;
-  }
-  void SetUp() override {
-    if (!test::cli_available()) GTEST_SKIP() << "STREAMCVD_CLI not built";
-    out_ = test::temp_dir("interrupt_out");
-  }
-  void TearDown() override { fs::remove_all(out_); }
+  static void write_suite_mesh(const std::string& path) { test::generate_torus(path, 1500, 1500); }
+
+ protected:
 
   /// Runs `args`, sends `sig` `delay` after the start; the watchdog (a SIGKILL, which the test
   /// then sees instead of `sig`) allows 120 s in all, far less than the uninterrupted job.
@@ -89,16 +69,10 @@ class Interrupt : public ::testing::Test {
   }
 
   std::vector<std::string> remesh_args() const {
-    return {"remesh", *big_, "-o", (out_ / "out.ply").string(), "-n", "300000", "-q"};
+    return {"remesh", *mesh_, "-o", (out_ / "out.ply").string(), "-n", "300000", "-q"};
   }
 
-  static fs::path* dir_;
-  static std::string* big_;
-  fs::path out_;
 };
-
-fs::path* Interrupt::dir_ = nullptr;
-std::string* Interrupt::big_ = nullptr;
 
 TEST_F(Interrupt, SigintEarlyInRemeshStopsAtOnce) {
   CliResult r = run_and_signal(remesh_args(), SIGINT, std::chrono::milliseconds(500));
@@ -120,7 +94,7 @@ TEST_F(Interrupt, SignalDuringWriteRemovesTheTemporaryFile) {
     SCOPED_TRACE(sig);
     bool seen_temp = false;
     // Compressing 85 MB at a high level keeps the temporary file open for a while.
-    CliResult r = run_and_signal_during_write({"convert", *big_, (out_ / "out.ply.zst").string()}, sig, seen_temp);
+    CliResult r = run_and_signal_during_write({"convert", *mesh_, (out_ / "out.ply.zst").string()}, sig, seen_temp);
     EXPECT_TRUE(seen_temp) << "the temporary file never appeared";
     EXPECT_FALSE(r.timed_out);
     EXPECT_EQ(r.signal, sig) << r.describe();
@@ -134,7 +108,7 @@ TEST_F(Interrupt, SigkillNeverLeavesTheFinalName) {
   EXPECT_FALSE(fs::exists(out_ / "out.ply"));
 
   bool seen_temp = false;
-  r = run_and_signal_during_write({"convert", *big_, (out_ / "out.ply").string()}, SIGKILL, seen_temp);
+  r = run_and_signal_during_write({"convert", *mesh_, (out_ / "out.ply").string()}, SIGKILL, seen_temp);
   EXPECT_EQ(r.signal, SIGKILL) << r.describe();
   EXPECT_FALSE(fs::exists(out_ / "out.ply")) << "a partial file under the final name";
   // The file being written was anonymous (O_TMPFILE): even SIGKILL leaves nothing behind.

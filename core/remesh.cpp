@@ -239,23 +239,6 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
   repair_options.dual = dual_options;
   repair_options.clustering = options.clustering;
   repair_options.relax = !lloyd;  // a Lloyd run's report stays pure Lloyd
-  auto repair_clustering = [&](uint32_t target_vertices) {
-    stage("repair");
-    repair_options.target_vertices = target_vertices;
-    // Compensating merges/splits of the repair stay in components with many clusters.
-    const std::vector<uint8_t> adjustable = clusters_in_large_components(labels, result.budget, K, 64);
-    DefectRepairResult r = repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops, repair_options,
-                                               result.clustering, storage);
-    result.seconds.repair += r.repair_seconds;
-    result.seconds.dual += r.check_seconds;
-    result.repair_rounds_used += r.rounds;
-    result.repaired_clusters += r.repaired_clusters;
-    result.repair_splits += r.splits;
-    result.repair_merges += r.merges;
-    result.repair_islands += r.islands;
-    result.repair_relaxed = r.relaxed;
-    return r;
-  };
   // Exactly N output vertices, strip vertices included. With S strip vertices on the dual of
   // the clustering, a few (S ≤ N/20) are made up by merging clusters off the boundary once the
   // defects are repaired (the repair's splits add some strip vertices too, also made up); more,
@@ -273,7 +256,22 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
   } else if (S > N / 20) {
     sample_and_cluster(N - S);
   }
-  const DefectRepairResult repair = repair_clustering(target);
+  stage("repair");
+  repair_options.target_vertices = target;
+  {
+    // Compensating merges/splits of the repair stay in components with many clusters.
+    const std::vector<uint8_t> adjustable = clusters_in_large_components(labels, result.budget, K, 64);
+    const DefectRepairResult r = repair_dual_defects(mesh, items, labels, K, adjustable, boundary_loops,
+                                                     repair_options, result.clustering, storage);
+    result.seconds.repair = r.repair_seconds;
+    result.seconds.dual = r.check_seconds;
+    result.repair_rounds_used = r.rounds;
+    result.repaired_clusters = r.repaired_clusters;
+    result.repair_splits = r.splits;
+    result.repair_merges = r.merges;
+    result.repair_islands = r.islands;
+    result.repair_relaxed = r.relaxed;
+  }
   sampling_items = ItemData{};
   stage("dual");
   t = std::chrono::steady_clock::now();

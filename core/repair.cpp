@@ -619,7 +619,6 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   if (bad.empty() && change == 0) {
     result.defect_vertices = tracker.defect_vertices();
     result.unjoined_pairs = tracker.unjoined_pairs();
-    result.strip_vertices = tracker.strip_vertices();
     return result;
   }
   t = std::chrono::steady_clock::now();
@@ -667,8 +666,6 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     // alone need more than N vertices); more rounds would find nothing either.
     if (asked != 0 && stats.merges + stats.splits + stats.dissolved_islands == 0) break;
   }
-  result.vertex_shortfall = change;
-  result.strip_vertices = tracker.strip_vertices();
   result.defect_vertices = tracker.defect_vertices();
   result.unjoined_pairs = tracker.unjoined_pairs();
   if (!bad.empty() || result.rounds == 0 || !options.relax) return result;
@@ -733,8 +730,6 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   }
   result.defect_vertices = tracker.defect_vertices();
   result.unjoined_pairs = tracker.unjoined_pairs();
-  result.vertex_shortfall = count_change();
-  result.strip_vertices = tracker.strip_vertices();
   result.repair_seconds += seconds_since(t);
   return result;
 }

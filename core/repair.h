@@ -61,9 +61,6 @@ struct DefectRepairResult {
   /// Input-adjacent cluster pairs still without a dual edge at the end (the output would come
   /// apart along their frontier; see dual::unjoined_pairs).
   uint64_t unjoined_pairs = 0;
-  /// target_vertices minus the dual's vertex count at the end (0 when met or no target).
-  int64_t vertex_shortfall = 0;
-  uint32_t strip_vertices = 0;  ///< strip vertices of the dual of the final labels
   std::vector<uint8_t> touched;         ///< per cluster: 1 when the repair changed it
   double check_seconds = 0, repair_seconds = 0;
 };

@@ -258,6 +258,9 @@ class DefectTracker {
         members_.members(c, members);
         vertices.insert(vertices.end(), members.begin(), members.end());
       }
+      // In store order: out of core, the set's clusters lie all over the mesh (the merges of a
+      // count round), and reading their faces in set order re-reads pages (the result is sorted).
+      std::sort(vertices.begin(), vertices.end());
       faces = dual::triples_around(mesh_, labels, vertices, set_.flags());
       neighbour_pairs = dual::neighbour_pairs_around(mesh_, labels, vertices);
     }
@@ -358,7 +361,7 @@ class ClusterRepair {
   ClusterRepair(const MeshView& mesh, const ItemData& items, LabelEditor& labels, uint32_t K,
                 std::span<const uint8_t> adjustable)
       : mesh_(mesh), items_(items), labels_(labels), K_(K), adjustable_(adjustable), weight_(K, 0.0),
-        touches_boundary_(K, 0), is_defect_(K), near_(K), used_(K), partner_(K, -1) {
+        touches_boundary_(K, 0), is_defect_(K), near_(K), used_(K), beside_merge_(K), partner_(K, -1) {
     std::vector<int32_t> all(K);
     std::iota(all.begin(), all.end(), 0);
     refresh(all);
@@ -407,8 +410,19 @@ class ClusterRepair {
     for (uint32_t v : members_of(c))
       for (uint32_t n : mesh_.neighbours(v))
         if (labels_[n] >= 0 && labels_[n] != c) out.push_back(labels_[n]);
-    std::sort(out.begin(), out.end());
-    out.erase(std::unique(out.begin(), out.end()), out.end());
+    sort_unique(out);
+  }
+  // The neighbour clusters of c: the list read before the round's merges, or, when a merge
+  // next to c has changed it since, a fresh one in `fresh`.
+  std::span<const int32_t> neighbours_now(int32_t c, std::vector<int32_t>& fresh) {
+    auto it = round_neighbours_.find(c);
+    if (it != round_neighbours_.end() && !beside_merge_.contains(c)) return it->second;
+    neighbour_clusters(c, fresh);
+    return fresh;
+  }
+  static void sort_unique(std::vector<int32_t>& v) {
+    std::sort(v.begin(), v.end());
+    v.erase(std::unique(v.begin(), v.end()), v.end());
   }
   static size_t common_count(std::span<const int32_t> x, std::span<const int32_t> y) {
     size_t n = 0;
@@ -431,15 +445,20 @@ class ClusterRepair {
   std::span<const uint8_t> adjustable_;
   std::vector<double> weight_;
   std::vector<uint8_t> touches_boundary_;
-  ClusterSet is_defect_, near_, used_;
+  ClusterSet is_defect_, near_, used_, beside_merge_;
   std::vector<int32_t> partner_;
   std::unordered_map<int32_t, std::vector<uint32_t>> round_members_;
+  std::unordered_map<int32_t, std::vector<int32_t>> round_neighbours_;  // merge candidates' lists
   SplitScratch scratch_;
 };
 
 std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_clusters, int64_t count_change,
                                           bool keep_strips, RepairRoundStats& stats) {
-  refresh(labels_.take_stale());
+  {
+    std::vector<int32_t> stale = labels_.take_stale();
+    std::sort(stale.begin(), stale.end());  // ids in store order (see the merge candidates)
+    refresh(stale);
+  }
   round_members_.clear();
   for (int32_t c : defect_clusters)
     if (c >= 0 && uint32_t(c) < K_) is_defect_.insert(c);
@@ -508,20 +527,37 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     auto lighter = [&](int32_t x, int32_t y) { return weight_[x] != weight_[y] ? weight_[x] < weight_[y] : x < y; };
     std::nth_element(candidates.begin(), candidates.begin() + std::ptrdiff_t(keep), candidates.end(), lighter);
     candidates.resize(keep);
-    for (int32_t a : candidates)
+    // Read in id order: the sampling numbers clusters range by range, so ascending ids walk the
+    // store (and the member index) forwards and each page is read once. In weight order the
+    // reads jump across the whole mesh: out of core, a 105M-face store at 2 GiB re-read its
+    // pages for every candidate (repair 186 s instead of 31 s).
+    std::sort(candidates.begin(), candidates.end());
+    for (int32_t a : candidates) {
+      std::vector<int32_t>& around = round_neighbours_[a];
       for (uint32_t v : members_of(a))
         for (uint32_t n : mesh_.neighbours(v)) {
           const int32_t b = labels_[n];
-          if (b < 0 || b == a || !compensable(b)) continue;
+          if (b < 0 || b == a) continue;
+          around.push_back(b);
+          if (!compensable(b)) continue;
           if (partner_[a] < 0 || lighter(b, partner_[a])) partner_[a] = b;
         }
+      sort_unique(around);
+    }
+    {  // the partners' neighbour lists, in id order too
+      std::vector<int32_t> partners;
+      for (int32_t a : candidates)
+        if (partner_[a] >= 0 && !round_neighbours_.contains(partner_[a])) partners.push_back(partner_[a]);
+      sort_unique(partners);
+      for (int32_t b : partners) neighbour_clusters(b, round_neighbours_[b]);
+    }
     std::vector<int32_t> proposers;
     for (int32_t a : candidates)
       if (partner_[a] >= 0) proposers.push_back(a);
     auto pair_weight = [&](int32_t a) { return weight_[a] + weight_[partner_[a]]; };
     std::stable_sort(proposers.begin(), proposers.end(),
                      [&](int32_t x, int32_t y) { return pair_weight(x) < pair_weight(y); });
-    std::vector<int32_t> around_a, around_b;
+    std::vector<int32_t> fresh_a, fresh_b;
     for (int32_t a : proposers) {
       if (ids_needed() + keep_free <= free_ids.size()) break;
       const int32_t b = partner_[a];
@@ -530,15 +566,17 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
       // when a and b have exactly two common neighbours, the clusters at the ends of their
       // frontier (the link condition of an edge collapse); the neighbours of a merged pair
       // wait for the next round, so that two merges never share a link.
-      neighbour_clusters(a, around_a);
-      neighbour_clusters(b, around_b);
+      // Lists taken before this round's merges, unless a merge next to the cluster changed them.
+      const std::span<const int32_t> around_a = neighbours_now(a, fresh_a);
+      const std::span<const int32_t> around_b = neighbours_now(b, fresh_b);
       if (!touches_boundary_[a] && !touches_boundary_[b] && common_count(around_a, around_b) != 2) continue;
       used_.insert(a);
       used_.insert(b);
-      if (keep_free > 0) {  // count rounds: many merges at once, kept apart
-        for (int32_t n : around_a) used_.insert(n);
-        for (int32_t n : around_b) used_.insert(n);
-      }
+      for (const std::span<const int32_t> around : {around_a, around_b})
+        for (int32_t n : around) {
+          beside_merge_.insert(n);
+          if (keep_free > 0) used_.insert(n);  // count rounds: many merges at once, kept apart
+        }
       for (uint32_t v : members_of(b)) labels_.set(v, a);
       free_ids.push_back(b);
       touched.push_back(a);
@@ -546,6 +584,8 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     }
     for (int32_t a : candidates) partner_[a] = -1;
     used_.clear();
+    beside_merge_.clear();
+    round_neighbours_.clear();
     while (!to_split.empty() && ids_needed() + keep_free > free_ids.size()) to_split.pop_back();
   }
   auto split = [&](int32_t c, std::span<const int32_t> ids) {

@@ -107,6 +107,32 @@ std::string failed_checks(const nlohmann::json& checks) {
 }
 
 // --attributes: all, none, or a comma-separated list of names.
+// Disk bytes read and written per stage (the report's io.stages): the counters are read when a
+// stage's final report arrives, so a stage gets what happened since the previous one ended.
+// Out of core this tells which stage pays for the paging.
+class StageIoLog {
+ public:
+  void see(const StageProgress& p) {
+    if (!p.finished) return;
+    const IoCounters now = read_io_counters();
+    auto it = std::find_if(stages_.begin(), stages_.end(), [&](const auto& s) { return s.first == p.stage; });
+    if (it == stages_.end()) it = stages_.insert(stages_.end(), {p.stage, IoCounters{}});
+    it->second.read_bytes += now.read_bytes - last_.read_bytes;
+    it->second.write_bytes += now.write_bytes - last_.write_bytes;
+    last_ = now;
+  }
+  void start() { last_ = read_io_counters(); }
+  nlohmann::json json() const {
+    nlohmann::json j = nlohmann::json::object();
+    for (const auto& [stage, io] : stages_) j[stage] = {{"read_bytes", io.read_bytes}, {"write_bytes", io.write_bytes}};
+    return j;
+  }
+
+ private:
+  IoCounters last_;
+  std::vector<std::pair<std::string, IoCounters>> stages_;  // in the order they ended
+};
+
 void parse_attributes(const std::string& text, PipelineOptions& options) {
   if (text == "all") {
     options.attributes = ReadOptions::Attributes::All;
@@ -247,9 +273,15 @@ void add_remesh_command(CLI::App& app) {
     // One line per stage on a terminal (or with --progress always): batch logs stay clean, and
     // -q, which silences the summary, silences the automatic progress too.
     auto progress = std::make_shared<ProgressLine>("remesh", args->job, args->quiet);
-    if (progress->active()) options.progress = [progress](const StageProgress& p) { progress->update(p); };
+    auto stage_io = std::make_shared<StageIoLog>();
+    if (progress->active() || !args->report.empty())
+      options.progress = [progress, stage_io](const StageProgress& p) {
+        stage_io->see(p);
+        progress->update(p);
+      };
     double t0 = now_seconds();
     const IoCounters io0 = read_io_counters();
+    stage_io->start();
     PipelineResult r = remesh_path(args->input, options);
     double t_write = now_seconds();
     progress->update({"write"});
@@ -350,7 +382,9 @@ void add_remesh_command(CLI::App& app) {
                      {"temporary_store_bytes", r.temporary_store_bytes},
                      {"work_directory", r.work_directory},
                      {"store_in_ram", r.store_in_ram}};
-      j["io"] = {{"read_bytes", io1.read_bytes - io0.read_bytes}, {"write_bytes", io1.write_bytes - io0.write_bytes}};
+      j["io"] = {{"read_bytes", io1.read_bytes - io0.read_bytes},
+                 {"write_bytes", io1.write_bytes - io0.write_bytes},
+                 {"stages", stage_io->json()}};
       {  // Always there, so that scripts read one shape: a store in RAM has no scheduler, no stages.
         nlohmann::json stages = nlohmann::json::object();
         for (const StageVisits& s : r.schedule.stages)

@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "core/errors.h"
+#include "core/store_stats.h"
 #include "core/subdivide.h"
 #include "streaming/mesh_io.h"
 #include "streaming/subdivision_stream.h"
@@ -169,6 +170,7 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
     report(o, {"open"});
     store = MeshStore::open(input);
     store.validate_all();  // every chunk read once: a long stage for a big store
+    if (store.cleaning_report(build_report)) build_report.cleaning.cleaned = compute_topology_stats(store.view());
     report(o, {.stage = "open", .done = store.view().face_count(), .unit = "faces", .finished = true});
     if (o.work_directory.empty()) o.work_directory = input;  // work files beside the store
     load_seconds = seconds_since(t);

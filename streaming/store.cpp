@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <optional>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <sstream>
@@ -38,6 +39,7 @@ namespace {
 constexpr uint32_t kStoreVersion = 2;
 constexpr const char* kHeaderFile = "header.bin";
 constexpr const char* kAttributesFile = "attributes.txt";
+constexpr const char* kCleaningFile = "cleaning.txt";  // a cleaned store's record (store_clean.h)
 
 // One array file of the store: its name, element size and entry count from the header.
 struct ArrayFile {
@@ -217,6 +219,7 @@ struct MeshStore::Impl {
   std::vector<Mapping> mappings;                // files of an opened store (by ArrayIndex)
   std::vector<std::span<const std::byte>> bytes;  // every array, in RAM or mapped
   std::vector<VertexAttribute> attributes;
+  std::string cleaning;                         // cleaning_record() of a cleaned store, else ""
   MeshView view;
   std::span<const uint32_t> original_view;
   std::span<const float> attribute_view;
@@ -405,7 +408,14 @@ MeshStore clean_store_topology(MeshStore&& built, const StoreBuildOptions& optio
     if (c.nonmanifold_edges == 0 && c.nonmanifold_vertices == 0) break;
   }
   report.cleaning.seconds = seconds();
+  current.impl_->cleaning = cleaning_record(report);
   return current;
+}
+
+bool MeshStore::cleaning_report(StoreBuildReport& out) const {
+  if (impl_->cleaning.empty()) return false;
+  parse_cleaning_record(impl_->cleaning, out);  // checked when the store was opened
+  return true;
 }
 
 MeshStore MeshStore::build_from_stream(const std::function<void(MeshSink&)>& produce, const StoreBuildOptions& options,
@@ -421,6 +431,8 @@ MeshStore MeshStore::ingest(const std::string& input, const std::string& directo
                             const ReadOptions& read, StoreBuildReport* report,
                             std::function<void(const BuildProgress&)> progress) {
   StoreBuildOptions o = options;
+  std::error_code stale;
+  std::filesystem::remove(std::filesystem::path(directory) / kCleaningFile, stale);  // the store it may replace
   if (o.work_directory.empty()) o.work_directory = directory;
   if (o.work_directory == directory) {  // scratch files go beside the store: the folder must exist
     std::error_code ec;
@@ -462,6 +474,8 @@ void MeshStore::write(const std::string& directory) const {
   for (size_t i = 0; i < files.size(); ++i) writer.add(files[i].name, impl_->bytes[i]);
   const std::string text = attributes_text(impl_->attributes);
   writer.add(kAttributesFile, std::as_bytes(std::span(text.data(), text.size())));
+  if (!impl_->cleaning.empty())
+    writer.add(kCleaningFile, std::as_bytes(std::span(impl_->cleaning.data(), impl_->cleaning.size())));
   writer.finish(kHeaderFile, std::as_bytes(std::span(&impl_->header, 1)));
 }
 
@@ -548,6 +562,15 @@ MeshStore MeshStore::open(const std::string& directory) {
     if (s.attributes.size() != h.attribute_count)
       fail(kAttributesFile, std::to_string(s.attributes.size()) + " attributes listed, the header says " +
                                 std::to_string(h.attribute_count));
+  }
+  if (std::ifstream in(directory + "/" + kCleaningFile); in) {  // optional: a cleaned store's record
+    s.cleaning.assign(std::istreambuf_iterator<char>(in), {});
+    try {
+      StoreBuildReport check;
+      parse_cleaning_record(s.cleaning, check);
+    } catch (const InputError& e) {
+      fail(kCleaningFile, e.what());
+    }
   }
   s.make_views();
   // The small tables are checked now: chunks tile [0, V) and [0, F), neighbours are chunk ids.

@@ -17,10 +17,13 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
+#include <sstream>
 #include <numeric>
 #include <utility>
 
 #include "core/chunked_components.h"
+#include "core/errors.h"
 #include "core/topology_conventions.h"
 
 namespace streamcvd {
@@ -430,6 +433,90 @@ void stream_cleaned_soup(const MeshStore& store, const CleaningPlan& plan, MeshS
   stats.vertices = header.vertices;
   stats.triangles = emitted;
   sink.end(stats);
+}
+
+namespace {
+
+// The integer fields of a cleaning record, by name.
+template <typename Report>
+auto record_fields(Report& r) {
+  auto& in = r.input_topology;
+  auto& c = r.cleaning;
+  return std::array<std::pair<const char*, decltype(&in.vertices)>, 19>{{
+      {"input_vertices", &in.vertices},
+      {"input_faces", &in.faces},
+      {"input_edges", &in.edges},
+      {"input_boundary_edges", &in.boundary_edges},
+      {"input_boundary_loops", &in.boundary_loops},
+      {"input_nonmanifold_edges", &in.nonmanifold_edges},
+      {"input_nonmanifold_vertices", &in.nonmanifold_vertices},
+      {"input_duplicate_faces", &in.duplicate_faces},
+      {"input_degenerate_faces", &in.degenerate_faces},
+      {"input_isolated_vertices", &in.isolated_vertices},
+      {"input_components", &in.components},
+      {"duplicate_faces_dropped", &c.duplicate_faces_dropped},
+      {"degenerate_faces_dropped", &c.degenerate_faces_dropped},
+      {"nonmanifold_edges_cut", &c.nonmanifold_edges_cut},
+      {"unpaired_edge_faces", &c.unpaired_edge_faces},
+      {"vertices_split", &c.vertices_split},
+      {"vertex_copies", &c.vertex_copies},
+      {"unpaired_faces_dropped", &c.unpaired_faces_dropped},
+      {"input_closed_manifold", nullptr},  // the rest: not uint64_t, handled by name
+  }};
+}
+
+}  // namespace
+
+std::string cleaning_record(const StoreBuildReport& r) {
+  std::ostringstream out;
+  StoreBuildReport copy = r;
+  for (const auto& [name, field] : record_fields(copy))
+    if (field) out << name << ' ' << *field << '\n';
+  const TopologyStats& in = r.input_topology;
+  out << "input_euler_characteristic " << in.euler_characteristic << '\n'
+      << "input_genus " << in.genus << '\n'
+      << "input_closed_manifold " << int(in.closed_manifold) << '\n'
+      << "input_consistently_oriented " << int(in.consistently_oriented) << '\n'
+      << "rounds " << r.cleaning.rounds << '\n';
+  char box[160];
+  std::snprintf(box, sizeof box, "input_bbox %.9g %.9g %.9g %.9g %.9g %.9g\n", in.bbox_min[0], in.bbox_min[1],
+                in.bbox_min[2], in.bbox_max[0], in.bbox_max[1], in.bbox_max[2]);
+  out << box;
+  return out.str();
+}
+
+void parse_cleaning_record(const std::string& text, StoreBuildReport& r) {
+  std::istringstream in(text);
+  std::string line;
+  auto fields = record_fields(r);
+  TopologyStats& t = r.input_topology;
+  for (int n = 1; std::getline(in, line); ++n) {
+    std::istringstream words(line);
+    std::string name;
+    words >> name;
+    bool ok = !name.empty();
+    if (name == "input_bbox") {
+      for (float& x : t.bbox_min) words >> x;
+      for (float& x : t.bbox_max) words >> x;
+    } else if (name == "input_euler_characteristic") {
+      words >> t.euler_characteristic;
+    } else if (name == "input_genus") {
+      words >> t.genus;
+    } else if (name == "input_closed_manifold" || name == "input_consistently_oriented") {
+      int b = 0;
+      words >> b;
+      (name == "input_closed_manifold" ? t.closed_manifold : t.consistently_oriented) = b != 0;
+    } else if (name == "rounds") {
+      words >> r.cleaning.rounds;
+    } else {
+      ok = false;
+      for (const auto& [key, field] : fields)
+        if (field && name == key) words >> *field, ok = true;
+    }
+    if (!ok || words.fail()) throw InputError("line " + std::to_string(n) + ": cannot read '" + line + "'");
+  }
+  r.topology_checked = true;
+  r.cleaning.rebuilt = true;
 }
 
 }  // namespace streamcvd

@@ -24,6 +24,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "core/mesh_stats.h"
@@ -61,6 +62,13 @@ CleaningPlan plan_topology_cleaning(const MeshView& mesh, TopologyCleaning& coun
 /// attributes in store order, then the copies; then its faces in store order, dropped ones left
 /// out, moved corners rewritten. O(V + F), blocks of 64 Ki elements; memory: one block.
 void stream_cleaned_soup(const MeshStore& store, const CleaningPlan& plan, MeshSink& sink);
+
+/// The record a cleaned store keeps (cleaning.txt in its directory): the input's figures as read
+/// and the cleaning's counts of `r`, one "name value" line each. O(1).
+std::string cleaning_record(const StoreBuildReport& r);
+/// Reads such a record into r (input_topology, cleaning; topology_checked and cleaning.rebuilt
+/// set). Throws InputError "line N: ..." for a line it cannot read.
+void parse_cleaning_record(const std::string& text, StoreBuildReport& r);
 
 /// The cleaning as MeshStore's builds run it on a store `built` as read: its figures into
 /// report.input_topology (compute_topology_stats, bounded memory); a clean store is returned as

@@ -116,8 +116,7 @@ nlohmann::json cleaning_json(const StoreBuildReport& b) {
           {"cleaned_components", out.components},
           {"cleaned_nonmanifold_edges", out.nonmanifold_edges},
           {"cleaned_nonmanifold_vertices", out.nonmanifold_vertices},
-          {"cleaned_closed_manifold", out.closed_manifold},
-          {"seconds", c.seconds}};
+          {"cleaned_closed_manifold", out.closed_manifold}};
 }
 
 void print_cleaning(std::FILE* out, const StoreBuildReport& b, const char* indent) {
@@ -158,6 +157,12 @@ void add_info_command(CLI::App& app) {
     if (is_store_directory(*path)) {
       store = MeshStore::open(*path);
       store.validate_all();
+      // A cleaned store keeps the input's figures as read; any other is its input as read.
+      build.cleaning.cleaned = compute_topology_stats(store.view());
+      if (!store.cleaning_report(build)) {
+        build.topology_checked = true;
+        build.input_topology = build.cleaning.cleaned;
+      }
     } else {
       // The figures of the input as read come from the build's check (the store may be the
       // cleaned one); the cleaning's are added.

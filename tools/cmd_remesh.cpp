@@ -320,6 +320,7 @@ void add_remesh_command(CLI::App& app) {
                       {"placement", rm.seconds.placement}, {"checks", rm.seconds.checks},
                       {"attributes", rm.seconds.attributes},
                       {"summary", r.summary_seconds},
+                      {"cleaning", r.input_build.cleaning.seconds},
                       {"write", write_seconds},           {"total", total}};
       j["clustering"] = {{"clusters", rm.clusters},
                          {"unconstrained_loops", cr.unconstrained_loops},

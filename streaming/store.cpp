@@ -370,7 +370,7 @@ MeshStore clean_store_topology(MeshStore&& built, const StoreBuildOptions& optio
   report.input_topology = compute_topology_stats(built.view());
   report.cleaning = {};
   report.cleaning.cleaned = report.input_topology;
-  if (!needs_topology_cleaning(report.input_topology)) {
+  if (!needs_topology_cleaning(report.input_topology, built.view())) {
     report.cleaning.seconds = seconds();
     return std::move(built);
   }

@@ -62,7 +62,7 @@ struct StoreBuildOptions {
 struct TopologyCleaning {
   bool rebuilt = false;                   ///< defects found: the store was rebuilt from the cleaned soup
   uint64_t duplicate_faces_dropped = 0;   ///< same vertex set as an earlier face (the first is kept)
-  uint64_t degenerate_faces_dropped = 0;  ///< a repeated index or zero area
+  uint64_t degenerate_faces_dropped = 0;  ///< a repeated index, or zero area at a non-manifold vertex
   uint64_t nonmanifold_edges_cut = 0;     ///< edges still used by > 2 faces after the drops, paired into sheets
   uint64_t unpaired_edge_faces = 0;       ///< faces of those edges left without a partner: a new boundary
   uint64_t vertices_split = 0;            ///< vertices whose faces fall into several fans

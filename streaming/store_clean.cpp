@@ -13,6 +13,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <array>
@@ -49,8 +50,14 @@ struct Faces {
   double zero;
   bool drop_unpaired = false;  // later rounds: faces a cut left unpaired go (see plan_topology_cleaning)
   const uint32_t* tri(uint64_t f) const { return &m.triangles[3 * f]; }
+  // A repeated index always; zero area only at a non-manifold vertex, where its angle about an
+  // edge would mean nothing. Elsewhere a zero-area face is harmless (it weighs nothing) and
+  // dropping it would open a slit in the surface (the dragon's 367 would make 303 holes).
   bool degenerate(uint64_t f) const {
     const uint32_t* t = tri(f);
+    if (topology::repeated_index(t[0], t[1], t[2])) return true;
+    const auto& flags = m.vertex_flags;
+    if (!((flags[t[0]] | flags[t[1]] | flags[t[2]]) & kVertexNonManifold)) return false;
     return topology::degenerate(m.positions, t[0], t[1], t[2], zero);
   }
   // Same vertex set as another face: both are in the face list of their owner (the set's
@@ -326,8 +333,19 @@ void plan_range(const Faces& fs, VertexRange r, FanScratch& s, RangePlan& p) {
 
 }  // namespace
 
-bool needs_topology_cleaning(const TopologyStats& s) {
-  return s.duplicate_faces > 0 || s.degenerate_faces > 0 || s.nonmanifold_edges > 0 || s.nonmanifold_vertices > 0;
+bool needs_topology_cleaning(const TopologyStats& s, const MeshView& mesh) {
+  if (s.duplicate_faces > 0 || s.nonmanifold_edges > 0 || s.nonmanifold_vertices > 0) return true;
+  if (s.degenerate_faces == 0) return false;
+  // Zero-area faces of a manifold stay (Faces::degenerate); a repeated index does not.
+  const auto tri = mesh.triangles;
+  return tbb::parallel_reduce(
+      tbb::blocked_range<uint64_t>(0, mesh.face_count(), 1 << 16), false,
+      [&](const tbb::blocked_range<uint64_t>& r, bool found) {
+        for (uint64_t f = r.begin(); f != r.end() && !found; ++f)
+          found = topology::repeated_index(tri[3 * f], tri[3 * f + 1], tri[3 * f + 2]);
+        return found;
+      },
+      [](bool a, bool b) { return a || b; });
 }
 
 CleaningPlan plan_topology_cleaning(const MeshView& mesh, TopologyCleaning& counts, bool drop_unpaired) {

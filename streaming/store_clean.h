@@ -2,7 +2,10 @@
 // read has duplicate, degenerate or non-manifold elements, so that clustering and the dual see a
 // manifold with boundary.
 //   - exact duplicate faces (same vertex set, either orientation) are dropped, the first kept;
-//   - degenerate faces (a repeated index, or zero area: core/mesh_stats.h's convention) are dropped;
+//   - faces with a repeated index are dropped, and zero-area faces (core/mesh_stats.h's threshold)
+//     at a non-manifold vertex; a zero-area face elsewhere stays: it weighs nothing, and dropping
+//     it from a manifold would open a slit (a clean scan such as the dragon, 367 of them, keeps
+//     its store byte for byte);
 //   - around an edge still used by more than two faces, the faces are sorted by their angle about
 //     the edge and neighbours of opposite edge direction are paired into sheets (the pairing with
 //     more pairs, then the flatter one, then the one whose pairs enclose the space behind their
@@ -33,10 +36,11 @@
 
 namespace streamcvd {
 
-/// True when a store with these figures (compute_topology_stats of the store as built) has
-/// anything the cleaning drops or cuts: duplicate or degenerate faces, non-manifold edges or
-/// vertices. O(1).
-bool needs_topology_cleaning(const TopologyStats& as_read);
+/// True when the store `mesh`, whose figures are `as_read` (compute_topology_stats), has anything
+/// the cleaning drops or cuts: duplicate faces, non-manifold edges or vertices, faces with a
+/// repeated index (zero-area faces of a manifold are kept: see the module comment). O(1), or one
+/// parallel pass over the faces when there are degenerate faces and nothing else. Thread-safe.
+bool needs_topology_cleaning(const TopologyStats& as_read, const MeshView& mesh);
 
 /// Which corners of which faces move to a vertex copy, and the vertex each copy repeats.
 struct CleaningPlan {

@@ -276,6 +276,7 @@ void add_ingest_command(CLI::App& app) {
                         {"key_buckets", report.key_buckets},
                         {"vertex_ranges", report.vertex_ranges},
                         {"polygons_split", report.polygons_split}};
+    if (report.topology_checked) j["cleaning"] = cleaning_json(report);
     if (*json) {
       print_json(j);
       return;
@@ -288,6 +289,7 @@ void add_ingest_command(CLI::App& app) {
                  format_bytes(double(in_bytes) / std::max(1e-9, total)).c_str(),
                  format_memory_size(report.memory_limit).c_str(), format_memory_size(peak.bytes).c_str(),
                  peak.source == PeakSource::Cgroup ? "cgroup" : "RSS", format_bytes(double(report.spilled_bytes)).c_str());
+    if (report.cleaning.rebuilt) print_cleaning(stderr, report, "  ");
   });
 }
 

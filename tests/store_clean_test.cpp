@@ -294,6 +294,7 @@ TEST(StoreClean, CleanedStoreIndependentOfMemoryAndThreads) {
   StoreBuildReport r2;
   MeshStore ingested = MeshStore::ingest(ply.string(), (root / "store").string(), limited, {}, &r2);
   EXPECT_TRUE(r2.cleaning.rebuilt);
+  EXPECT_GT(r2.spilled_bytes, 0u);  // the limit did force the external-memory paths
   expect_same_store(reference, ingested);
   const MeshStore opened = MeshStore::open((root / "store").string());
   expect_same_store(reference, opened);

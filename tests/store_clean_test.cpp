@@ -231,6 +231,24 @@ TEST(StoreClean, BookOfThreeSheetsPairsTwo) {
   expect_original_positions(store, m);
 }
 
+TEST(StoreClean, RepeatedIndexFacesGoZeroAreaFacesOfAManifoldStay) {
+  MeshBuffers m = sphere();
+  const uint32_t a = m.triangles[0], b = m.triangles[1], c = m.triangles[2];
+  m.triangles.insert(m.triangles.end(), {a, a, b});
+  StoreBuildReport r;
+  build(m, r);
+  EXPECT_TRUE(r.cleaning.rebuilt);
+  EXPECT_EQ(r.cleaning.degenerate_faces_dropped, 1u);
+  EXPECT_TRUE(r.cleaning.cleaned.closed_manifold);
+  // Corner c moved onto corner a: a zero-area face inside a manifold, which dropping would open.
+  MeshBuffers flat = sphere();
+  for (int k = 0; k < 3; ++k) flat.positions[3 * c + k] = flat.positions[3 * a + k];
+  StoreBuildReport f;
+  build(flat, f);
+  EXPECT_GE(f.input_topology.degenerate_faces, 1u);
+  EXPECT_FALSE(f.cleaning.rebuilt);
+}
+
 TEST(StoreClean, CleanInputIsTheStoreAsBuilt) {
   const MeshBuffers m = make_torus(40, 30);
   StoreBuildReport r;

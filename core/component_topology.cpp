@@ -135,7 +135,7 @@ ComponentCheck check_component_topology(std::span<const ComponentShape> input, c
     i = j;
   }
   for (uint32_t v = 0; v < V; ++v)
-    if (on_boundary[v] && boundary.find(v) == v) ++loops[id[uf.find(v)]];
+    if (on_boundary[v] && boundary.find(v) == v) ++loops[id[uf.find(v)]], ++check.output_boundary_loops;
   // Which input component each output component comes from (through any of its clusters).
   std::vector<uint32_t> source(components, kNone);
   for (uint32_t v = 0; v < V; ++v) {
@@ -160,6 +160,7 @@ ComponentCheck check_component_topology(std::span<const ComponentShape> input, c
   for (uint32_t c = 0; c < input.size(); ++c) {
     if (!expected[c]) continue;
     ++check.input_components;
+    check.input_boundary_loops += input[c].boundary_loops;
     if (pieces[c] != 1) {
       problem(c, pieces[c] == 0 ? "missing from the output" : "split into " + std::to_string(pieces[c]) + " pieces");
       continue;

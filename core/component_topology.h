@@ -35,6 +35,8 @@ std::vector<ComponentShape> input_component_shapes(const MeshView& mesh, std::sp
 struct ComponentCheck {
   uint64_t input_components = 0;   ///< input components that got clusters
   uint64_t output_components = 0;  ///< connected components of the output
+  uint64_t input_boundary_loops = 0;   ///< boundary loops of the input components with clusters
+  uint64_t output_boundary_loops = 0;  ///< boundary loops of the output
   std::vector<std::string> problems;  ///< one line each: "component 3 (1,234 vertices): split into 2 pieces"
   bool ok() const { return problems.empty(); }
 };

@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "core/errors.h"
+#include "core/store_stats.h"
 #include "core/subdivide.h"
 #include "streaming/mesh_io.h"
 #include "streaming/subdivision_stream.h"
@@ -107,6 +108,7 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
     StoreBuildOptions build;
     build.memory_limit = options.memory_limit;
     build.work_directory = work;
+    build.clean_topology = false;  // a subdivided clean store is clean: no check pass
     WorkSpace scratch(work, work_ram_budget(options.memory_limit, 0));
     const MeshStore& current = level == 0 ? store : subdivided;
     const VertexAttributeRows rows =
@@ -162,11 +164,13 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
   double load_seconds = 0, store_seconds = 0;
   PipelineOptions o = options;
   std::string kept;
+  StoreBuildReport build_report;
   const bool from_store = is_store_directory(input);
   if (from_store) {
     report(o, {"open"});
     store = MeshStore::open(input);
     store.validate_all();  // every chunk read once: a long stage for a big store
+    if (store.cleaning_report(build_report)) build_report.cleaning.cleaned = compute_topology_stats(store.view());
     report(o, {.stage = "open", .done = store.view().face_count(), .unit = "faces", .finished = true});
     if (o.work_directory.empty()) o.work_directory = input;  // work files beside the store
     load_seconds = seconds_since(t);
@@ -183,9 +187,9 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
       // A named store in the work folder, kept for a rerun.
       std::string name = std::filesystem::path(input == "-" ? "stdin" : input).filename().string();
       kept = (std::filesystem::path(build.work_directory) / (name + ".store")).string();
-      store = MeshStore::ingest(input, kept, build, read, nullptr, o.progress);
+      store = MeshStore::ingest(input, kept, build, read, &build_report, o.progress);
     } else {
-      store = MeshStore::build_from_file(input, build, read, nullptr, o.progress);
+      store = MeshStore::build_from_file(input, build, read, &build_report, o.progress);
     }
     store_seconds = seconds_since(t);
     report(o, {.stage = "ingest", .done = store.view().face_count(), .unit = "faces", .finished = true});
@@ -196,6 +200,7 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
   } catch (const InputError& e) {
     throw InputError(error_at(input, e.what()));  // name the file, as every CLI error does
   }
+  result.input_build = build_report;
   result.load_seconds = load_seconds;
   result.store_seconds += store_seconds;
   result.store_in_ram = store.ram_bytes() > 0 || store.view().vertex_count() == 0;

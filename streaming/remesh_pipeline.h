@@ -51,6 +51,10 @@ struct PipelineResult {
   /// The attributes carried (names and input types): the columns of remesh.vertex_attributes.
   std::vector<VertexAttribute> attributes;
   InputSummary input;
+  /// The build of a file input's store: input_build.topology_checked, then the input's figures
+  /// as read (input_topology) and what the cleaning did (cleaning, whose `cleaned` figures are
+  /// those of the store remeshed). A store input was cleaned when ingested: unchecked here.
+  StoreBuildReport input_build;
   int subdivision_levels = 0;
   uint64_t remeshed_vertices = 0, remeshed_faces = 0;  ///< after subdivision
   double load_seconds = 0, subdivide_seconds = 0, store_seconds = 0;

@@ -9,20 +9,24 @@
 
 #include <algorithm>
 #include <bit>
+#include <chrono>
 #include <cstdlib>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <optional>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <sstream>
 #include <type_traits>
 
 #include "core/errors.h"
+#include "core/store_stats.h"
 #include "streaming/output_file.h"
 #include "streaming/pipelined_sink.h"
+#include "streaming/store_clean.h"
 #include "streaming/store_writer.h"
 
 namespace streamcvd {
@@ -35,6 +39,7 @@ namespace {
 constexpr uint32_t kStoreVersion = 2;
 constexpr const char* kHeaderFile = "header.bin";
 constexpr const char* kAttributesFile = "attributes.txt";
+constexpr const char* kCleaningFile = "cleaning.txt";  // a cleaned store's record (store_clean.h)
 
 // One array file of the store: its name, element size and entry count from the header.
 struct ArrayFile {
@@ -214,6 +219,7 @@ struct MeshStore::Impl {
   std::vector<Mapping> mappings;                // files of an opened store (by ArrayIndex)
   std::vector<std::span<const std::byte>> bytes;  // every array, in RAM or mapped
   std::vector<VertexAttribute> attributes;
+  std::string cleaning;                         // cleaning_record() of a cleaned store, else ""
   MeshView view;
   std::span<const uint32_t> original_view;
   std::span<const float> attribute_view;
@@ -316,7 +322,10 @@ MeshStore MeshStore::build(const TriangleSoupView& soup, const StoreBuildOptions
   MemoryOutputs out;
   StoreBuilder builder(out, options);
   stream_soup(soup, builder);
-  return StoreAssembly::from_memory(out, builder.result());
+  MeshStore store = StoreAssembly::from_memory(out, builder.result());
+  if (!options.clean_topology) return store;
+  StoreBuildReport report = builder.result().report;
+  return clean_store_topology(std::move(store), options, report, {});
 }
 
 MeshStore MeshStore::build(MeshBuffers&& soup, const StoreBuildOptions& options) {
@@ -330,8 +339,12 @@ MeshStore MeshStore::build_from_file(const std::string& input, const StoreBuildO
   return build_from_stream([&](MeshSink& sink) { stream_file(input, sink, read, progress); }, options, report, progress);
 }
 
-MeshStore MeshStore::build_from_stream(const std::function<void(MeshSink&)>& produce, const StoreBuildOptions& options,
-                                       StoreBuildReport* report, std::function<void(const BuildProgress&)> progress) {
+namespace {
+
+// The store of what `produce` streams, as read: in RAM when it fits half the memory limit, else
+// in anonymous work files.
+MeshStore build_as_read(const std::function<void(MeshSink&)>& produce, const StoreBuildOptions& options,
+                        StoreBuildReport& report, const std::function<void(const BuildProgress&)>& progress) {
   StoreBuildOptions o = options;
   if (o.work_directory.empty()) {
     const char* tmp = std::getenv("TMPDIR");
@@ -340,15 +353,86 @@ MeshStore MeshStore::build_from_stream(const std::function<void(MeshSink&)>& pro
   AutoOutputs out(o.memory_limit, o.work_directory);
   StoreBuilder builder(out, o, progress);
   produce(builder);
-  if (report) *report = builder.result().report;
+  report = builder.result().report;
   if (ScratchOutputs* scratch = out.scratch()) return StoreAssembly::from_scratch(*scratch, builder.result());
   return StoreAssembly::from_memory(out.ram(), builder.result());
+}
+
+}  // namespace
+
+MeshStore clean_store_topology(MeshStore&& built, const StoreBuildOptions& options, StoreBuildReport& report,
+                               const std::function<void(const BuildProgress&)>& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+  // Pass 1: the figures as read (what `info` prints). A clean store ends here, as built.
+  if (progress) progress({"check"});
+  report.topology_checked = true;
+  report.input_topology = compute_topology_stats(built.view());
+  report.cleaning = {};
+  report.cleaning.cleaned = report.input_topology;
+  if (!needs_topology_cleaning(report.input_topology, built.view())) {
+    report.cleaning.seconds = seconds();
+    return std::move(built);
+  }
+  // Pass 2: the plan, fan by fan. Pass 3: the cleaned soup through the same builder, with the
+  // original ids mapped back to the file's (a copy has its vertex's). A cut that did not come
+  // apart (an edge still non-manifold) gets a second round dropping its unpaired faces, and a
+  // third if that split a vertex into fans once more.
+  MeshStore current = std::move(built);
+  constexpr uint32_t kMaxRounds = 3;
+  const uint64_t input_vertices = current.header().input_vertex_count;
+  for (uint32_t round = 0; round < kMaxRounds; ++round) {
+    if (progress) progress({"clean"});
+    const CleaningPlan plan = plan_topology_cleaning(current.view(), report.cleaning, round > 0);
+    StoreBuildOptions o = options;
+    o.clean_topology = false;
+    const std::span<const uint32_t> original = current.original_vertex_ids();
+    o.map_original_ids = [&](std::span<uint32_t> ids) {
+      for (uint32_t& id : ids) id = original[id < plan.vertices ? id : plan.copy_source[id - plan.vertices]];
+    };
+    o.original_vertex_count = input_vertices;
+    // The previous store stays while the next is built: what it holds in RAM is not the build's.
+    if (o.memory_limit > 0)
+      o.memory_limit = std::max(o.memory_limit - std::min(o.memory_limit, current.ram_bytes()), o.memory_limit / 4);
+    StoreBuildReport rebuilt;
+    MeshStore cleaned = build_as_read([&](MeshSink& sink) { stream_cleaned_soup(current, plan, sink); }, o, rebuilt, progress);
+    current = std::move(cleaned);
+    report.vertices = rebuilt.vertices;
+    report.faces = rebuilt.faces;
+    report.chunks = rebuilt.chunks;
+    report.spilled_bytes += rebuilt.spilled_bytes;
+    report.cleaning.rebuilt = true;
+    report.cleaning.rounds = round + 1;
+    report.cleaning.cleaned = compute_topology_stats(current.view());
+    const TopologyStats& c = report.cleaning.cleaned;
+    if (c.nonmanifold_edges == 0 && c.nonmanifold_vertices == 0) break;
+  }
+  report.cleaning.seconds = seconds();
+  current.impl_->cleaning = cleaning_record(report);
+  return current;
+}
+
+bool MeshStore::cleaning_report(StoreBuildReport& out) const {
+  if (impl_->cleaning.empty()) return false;
+  parse_cleaning_record(impl_->cleaning, out);  // checked when the store was opened
+  return true;
+}
+
+MeshStore MeshStore::build_from_stream(const std::function<void(MeshSink&)>& produce, const StoreBuildOptions& options,
+                                       StoreBuildReport* report, std::function<void(const BuildProgress&)> progress) {
+  StoreBuildReport r;
+  MeshStore store = build_as_read(produce, options, r, progress);
+  if (options.clean_topology) store = clean_store_topology(std::move(store), options, r, progress);
+  if (report) *report = r;
+  return store;
 }
 
 MeshStore MeshStore::ingest(const std::string& input, const std::string& directory, const StoreBuildOptions& options,
                             const ReadOptions& read, StoreBuildReport* report,
                             std::function<void(const BuildProgress&)> progress) {
   StoreBuildOptions o = options;
+  std::error_code stale;
+  std::filesystem::remove(std::filesystem::path(directory) / kCleaningFile, stale);  // the store it may replace
   if (o.work_directory.empty()) o.work_directory = directory;
   if (o.work_directory == directory) {  // scratch files go beside the store: the folder must exist
     std::error_code ec;
@@ -366,8 +450,22 @@ MeshStore MeshStore::ingest(const std::string& input, const std::string& directo
   const std::string text = attributes_text(r.attributes);
   out.array(kAttributesFile).append(text.data(), text.size());
   out.writer().finish(kHeaderFile, std::as_bytes(std::span(&h, 1)));
-  if (report) *report = r.report;
-  return open(directory);
+  StoreBuildReport built = r.report;
+  MeshStore store = open(directory);
+  if (o.clean_topology) {
+    // A defective input's cleaned store replaces the one written (the old files stay mapped by
+    // `store` until it is gone); a clean one stays as written.
+    MeshStore cleaned = clean_store_topology(std::move(store), o, built, progress);
+    if (built.cleaning.rebuilt) {
+      cleaned.write(directory);
+      cleaned = MeshStore();
+      store = open(directory);
+    } else {
+      store = std::move(cleaned);
+    }
+  }
+  if (report) *report = built;
+  return store;
 }
 
 void MeshStore::write(const std::string& directory) const {
@@ -376,6 +474,8 @@ void MeshStore::write(const std::string& directory) const {
   for (size_t i = 0; i < files.size(); ++i) writer.add(files[i].name, impl_->bytes[i]);
   const std::string text = attributes_text(impl_->attributes);
   writer.add(kAttributesFile, std::as_bytes(std::span(text.data(), text.size())));
+  if (!impl_->cleaning.empty())
+    writer.add(kCleaningFile, std::as_bytes(std::span(impl_->cleaning.data(), impl_->cleaning.size())));
   writer.finish(kHeaderFile, std::as_bytes(std::span(&impl_->header, 1)));
 }
 
@@ -415,7 +515,9 @@ MeshStore MeshStore::open(const std::string& directory) {
     fail(kHeaderFile, "chunk count " + std::to_string(h.chunk_count) + " impossible for " + std::to_string(h.vertex_count) +
                           " vertices");
   if (h.attribute_count > 4096) fail(kHeaderFile, "attribute count " + std::to_string(h.attribute_count) + " too large");
-  if (h.input_vertex_count < h.vertex_count || h.input_vertex_count > std::numeric_limits<uint32_t>::max())
+  // Fewer store vertices than input ones when STL corners merge, more when the cleaning copied
+  // vertices at a non-manifold spot (streaming/store_clean.h); never vertices without an input.
+  if ((h.input_vertex_count == 0) != (h.vertex_count == 0) || h.input_vertex_count > std::numeric_limits<uint32_t>::max())
     fail(kHeaderFile, "input vertex count " + std::to_string(h.input_vertex_count) + " impossible for " +
                           std::to_string(h.vertex_count) + " vertices");
   // Arrays: sizes must match the header exactly, then map them.
@@ -460,6 +562,15 @@ MeshStore MeshStore::open(const std::string& directory) {
     if (s.attributes.size() != h.attribute_count)
       fail(kAttributesFile, std::to_string(s.attributes.size()) + " attributes listed, the header says " +
                                 std::to_string(h.attribute_count));
+  }
+  if (std::ifstream in(directory + "/" + kCleaningFile); in) {  // optional: a cleaned store's record
+    s.cleaning.assign(std::istreambuf_iterator<char>(in), {});
+    try {
+      StoreBuildReport check;
+      parse_cleaning_record(s.cleaning, check);
+    } catch (const InputError& e) {
+      fail(kCleaningFile, e.what());
+    }
   }
   s.make_views();
   // The small tables are checked now: chunks tile [0, V) and [0, F), neighbours are chunk ids.

@@ -116,6 +116,11 @@ class MeshStore {
   /// header().attribute_count floats per vertex, store order.
   std::span<const float> vertex_attributes() const;
   const std::vector<VertexAttribute>& attributes() const;
+  /// A store rebuilt by the topology cleaning (streaming/store_clean.h) keeps the input's figures
+  /// as read and what the cleaning did (cleaning.txt in its directory): fills `out`'s
+  /// topology_checked, input_topology and cleaning (not cleaning.cleaned) and returns true; false
+  /// for any other store (a clean input's, one built without cleaning). O(1).
+  bool cleaning_report(StoreBuildReport& out) const;
   /// Bytes of all arrays (the store's size on disk).
   uint64_t size_bytes() const;
   /// Bytes of the arrays held in RAM (0 for a store mapped from files).
@@ -125,6 +130,8 @@ class MeshStore {
   struct Impl;
   std::unique_ptr<Impl> impl_;
   friend struct StoreAssembly;
+  friend MeshStore clean_store_topology(MeshStore&& built, const StoreBuildOptions& options, StoreBuildReport& report,
+                                        const std::function<void(const BuildProgress&)>& progress);
 };
 
 /// True when `path` is a store directory (holds header.bin with the store magic).

@@ -101,7 +101,7 @@ void StoreBuilder::State::require(uint64_t need, const char* what) const {
 void StoreBuilder::State::finish_result() {
   StoreBuildReport& r = result.report;
   r.input_bytes = read.bytes;
-  r.input_vertices = input_vertices;
+  r.input_vertices = options.original_vertex_count ? options.original_vertex_count : input_vertices;
   r.vertices = result.vertex_count;
   r.faces = result.face_count;
   r.chunks = result.chunks.size();

@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "core/mesh_stats.h"
 #include "core/mesh_view.h"
 #include "core/progress.h"
 #include "streaming/mesh_reader.h"
@@ -44,6 +45,35 @@ struct StoreBuildOptions {
   std::string work_directory;
   /// Vertex range of one pass-4 unit when memory is unlimited (bounds the working set).
   uint32_t max_range_vertices = 1u << 20;
+  /// MeshStore's builds (streaming/store.h): clean the input's topology (streaming/store_clean.h).
+  /// A store with duplicate, degenerate or non-manifold elements is rebuilt from a cleaned soup;
+  /// a clean one is left as built (same bytes). false keeps the input as read. StoreBuilder
+  /// itself ignores it.
+  bool clean_topology = true;
+  /// Rewrites, in place and in store order, each block of the input ids before they go to
+  /// original_ids.u32 (the cleaning's rebuild maps its input, the first store's vertices and
+  /// their copies, back to the file's ids). Empty: the ids as read.
+  std::function<void(std::span<uint32_t>)> map_original_ids;
+  /// With map_original_ids: the input vertex count the store's header records (0: as read).
+  uint64_t original_vertex_count = 0;
+};
+
+/// What the topology cleaning did (streaming/store_clean.h); all 0 for a clean input.
+struct TopologyCleaning {
+  bool rebuilt = false;                   ///< defects found: the store was rebuilt from the cleaned soup
+  uint64_t duplicate_faces_dropped = 0;   ///< same vertex set as an earlier face (the first is kept)
+  uint64_t degenerate_faces_dropped = 0;  ///< a repeated index, or zero area at a non-manifold vertex
+  uint64_t nonmanifold_edges_cut = 0;     ///< edges still used by > 2 faces after the drops, paired into sheets
+  uint64_t unpaired_edge_faces = 0;       ///< faces of those edges left without a partner: a new boundary
+  uint64_t vertices_split = 0;            ///< vertices whose faces fall into several fans
+  uint64_t vertex_copies = 0;             ///< vertices added, one per fan beyond the first
+  uint64_t unpaired_faces_dropped = 0;    ///< later rounds: unpaired faces of cuts that did not come apart
+  uint32_t rounds = 0;                    ///< rebuilds (a second or third only when a cut did not come apart)
+  double seconds = 0;                     ///< checks, plan, rebuild
+  /// The figures of the store as cleaned (those of the input when nothing was rebuilt).
+  TopologyStats cleaned;
+  /// Pieces the cut made: components of the cleaned store beyond those of the input.
+  int64_t sheets_made(const TopologyStats& input) const { return int64_t(cleaned.components) - int64_t(input.components); }
 };
 
 /// Progress of a build (core/progress.h): `stage` is "read", "order", "faces", "adjacency";
@@ -61,6 +91,11 @@ struct StoreBuildReport {
   uint64_t memory_limit = 0;                    ///< the limit planned with (0 = unlimited)
   uint64_t spilled_bytes = 0;                   ///< bytes written to scratch files
   double read_seconds = 0, order_seconds = 0, faces_seconds = 0, adjacency_seconds = 0;
+  /// clean_topology: the input's figures as read (compute_topology_stats of the first build,
+  /// what `info` prints) and what the cleaning did. Unset (topology_checked false) otherwise.
+  bool topology_checked = false;
+  TopologyStats input_topology;
+  TopologyCleaning cleaning;
 };
 
 /// Where a build puts each array of the store, front to back (StoreDirectoryWriter streams for

@@ -351,6 +351,7 @@ void StoreBuilder::State::order_vertices() {
     });
     add_block_boxes(block_boxes, vertex_count, out_xyz);
     positions.append(std::span<const float>(out_xyz));
+    if (options.map_original_ids) options.map_original_ids(std::span<uint32_t>(out_ids.data(), out_n));
     original_ids.append(std::span<const uint32_t>(out_ids.data(), out_n));
     if (attributes) attributes->append(std::span<const float>(out_attributes));
     vertex_count += uint32_t(out_n);

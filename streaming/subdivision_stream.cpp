@@ -109,7 +109,7 @@ void stream_subdivision(const MeshView& mesh, MeshSink& sink, ArrayStorage& stor
 }
 
 MeshBuffers subdivide_linear(const TriangleSoupView& soup) {
-  const MeshStore store = MeshStore::build(soup, {.hilbert_order = false});
+  const MeshStore store = MeshStore::build(soup, {.hilbert_order = false, .clean_topology = false});  // the soup as given
   struct Collect final : MeshSink {
     MeshBuffers out;
     void begin(const MeshHeaderInfo&) override {}

@@ -49,7 +49,7 @@ MeshBuffers specks() {
 }
 
 MeshStore store_of(const MeshBuffers& soup, uint64_t faces_per_chunk) {
-  return MeshStore::build(soup.view(), StoreBuildOptions{.faces_per_chunk = faces_per_chunk});
+  return MeshStore::build(soup.view(), StoreBuildOptions{.faces_per_chunk = faces_per_chunk, .clean_topology = false});
 }
 
 uint64_t fnv(const std::vector<uint32_t>& v) {

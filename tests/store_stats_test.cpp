@@ -65,7 +65,7 @@ TopologyStats check_store_matches_soup(const MeshBuffers& mesh, const std::strin
   const uint64_t f = mesh.face_count();
   for (uint64_t per_chunk : {uint64_t(1), uint64_t(7), std::max<uint64_t>(1, f / 10), uint64_t(1) << 20})
     for (bool hilbert : {true, false}) {
-      const MeshStore store = MeshStore::build(mesh.view(), {.faces_per_chunk = per_chunk, .hilbert_order = hilbert});
+      const MeshStore store = MeshStore::build(mesh.view(), {.faces_per_chunk = per_chunk, .hilbert_order = hilbert, .clean_topology = false});
       const MeshView view = store.view();
       if (per_chunk == 7 && f >= 14) {
         EXPECT_GE(view.chunks.size(), 2u) << name;
@@ -242,7 +242,7 @@ TEST(StoreStats, NonFiniteCoordinatesCountDegenerateFacesWithTheExactBox) {
   EXPECT_EQ(compute_topology_stats(inf.view()).degenerate_faces, inf.face_count());
   MeshBuffers nan = make_grid(6, 6);
   nan.positions[1] = std::numeric_limits<float>::quiet_NaN();
-  const MeshStore store = MeshStore::build(nan.view(), {.faces_per_chunk = 7, .hilbert_order = false});
+  const MeshStore store = MeshStore::build(nan.view(), {.faces_per_chunk = 7, .hilbert_order = false, .clean_topology = false});
   const TopologyStats s = compute_topology_stats(store.view());
   expect_same(s, compute_topology_stats(nan.view()), "NaN at vertex 0");
   EXPECT_TRUE(std::isnan(s.bbox_min[1]));
@@ -274,7 +274,7 @@ TEST(StoreStats, EmptyAndTinyStores) {
 
 TEST(StoreStats, WrongFaceListsThrow) {
   const MeshBuffers mesh = make_icosphere(1);
-  const MeshStore store = MeshStore::build(mesh.view(), {.faces_per_chunk = 7});
+  const MeshStore store = MeshStore::build(mesh.view(), {.faces_per_chunk = 7, .clean_topology = false});
   MeshView view = store.view();
   // A vertex→face list naming a face that does not hold the vertex.
   std::vector<uint32_t> vf(view.vertex_face.begin(), view.vertex_face.end());

@@ -88,6 +88,55 @@ void print_quality(const QualityStats& q) {
   std::printf("  edge length mean/CV  %g / %.4f\n", q.edge_length_mean, q.edge_length_cv);
 }
 
+// What the store build's topology cleaning did (streaming/store_clean.h): the input's defects as
+// read, what was dropped and cut, the figures of the cleaned mesh.
+nlohmann::json cleaning_json(const StoreBuildReport& b) {
+  const TopologyCleaning& c = b.cleaning;
+  const TopologyStats& in = b.input_topology;
+  const TopologyStats& out = c.cleaned;
+  return {{"rebuilt", c.rebuilt},
+          {"input_nonmanifold_edges", in.nonmanifold_edges},
+          {"input_nonmanifold_vertices", in.nonmanifold_vertices},
+          {"input_duplicate_faces", in.duplicate_faces},
+          {"input_degenerate_faces", in.degenerate_faces},
+          {"input_boundary_loops", in.boundary_loops},
+          {"input_components", in.components},
+          {"duplicate_faces_dropped", c.duplicate_faces_dropped},
+          {"degenerate_faces_dropped", c.degenerate_faces_dropped},
+          {"nonmanifold_edges_cut", c.nonmanifold_edges_cut},
+          {"unpaired_edge_faces", c.unpaired_edge_faces},
+          {"vertices_split", c.vertices_split},
+          {"vertex_copies", c.vertex_copies},
+          {"unpaired_faces_dropped", c.unpaired_faces_dropped},
+          {"rounds", c.rounds},
+          {"sheets_made", c.sheets_made(in)},
+          {"cleaned_vertices", out.vertices},
+          {"cleaned_faces", out.faces},
+          {"cleaned_boundary_loops", out.boundary_loops},
+          {"cleaned_components", out.components},
+          {"cleaned_nonmanifold_edges", out.nonmanifold_edges},
+          {"cleaned_nonmanifold_vertices", out.nonmanifold_vertices},
+          {"cleaned_closed_manifold", out.closed_manifold}};
+}
+
+void print_cleaning(std::FILE* out, const StoreBuildReport& b, const char* indent) {
+  const TopologyCleaning& c = b.cleaning;
+  const TopologyStats& m = c.cleaned;
+  auto u = [](uint64_t x) { return (unsigned long long)x; };
+  if (!c.rebuilt) {
+    std::fprintf(out, "%scleaning            none needed\n", indent);
+    return;
+  }
+  std::fprintf(out, "%scleaning            %llu duplicate + %llu degenerate faces dropped, %llu non-manifold edges cut "
+               "(%llu faces left unpaired), %llu vertices split into %llu copies, %llu unpaired faces dropped (%u rounds)\n",
+               indent, u(c.duplicate_faces_dropped), u(c.degenerate_faces_dropped), u(c.nonmanifold_edges_cut),
+               u(c.unpaired_edge_faces), u(c.vertices_split), u(c.vertex_copies), u(c.unpaired_faces_dropped), c.rounds);
+  std::fprintf(out, "%scleaned             %llu vertices, %llu faces, %llu boundary loops, %llu components (%lld sheets "
+               "made), non-manifold e/v %llu / %llu\n",
+               indent, u(m.vertices), u(m.faces), u(m.boundary_loops), u(m.components),
+               (long long)c.sheets_made(b.input_topology), u(m.nonmanifold_edges), u(m.nonmanifold_vertices));
+}
+
 void add_info_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("info", "Counts, bounding box and topology of a mesh file or store");
   auto path = std::make_shared<std::string>();
@@ -104,20 +153,31 @@ void add_info_command(CLI::App& app) {
     options.memory_limit = memory_limit(*job);
     options.work_directory = job->work_dir;
     MeshStore store;
+    StoreBuildReport build;
     if (is_store_directory(*path)) {
       store = MeshStore::open(*path);
       store.validate_all();
+      // A cleaned store keeps the input's figures as read; any other is its input as read.
+      build.cleaning.cleaned = compute_topology_stats(store.view());
+      if (!store.cleaning_report(build)) {
+        build.topology_checked = true;
+        build.input_topology = build.cleaning.cleaned;
+      }
     } else {
+      // The figures of the input as read come from the build's check (the store may be the
+      // cleaned one); the cleaning's are added.
       ProgressLine progress("info", *job);
-      store = MeshStore::build_from_file(*path, options, {}, nullptr, [&](const BuildProgress& p) { progress.update(p); });
+      store = MeshStore::build_from_file(*path, options, {}, &build, [&](const BuildProgress& p) { progress.update(p); });
     }
-    const TopologyStats stats = compute_topology_stats(store.view());
+    const TopologyStats stats = build.topology_checked ? build.input_topology : compute_topology_stats(store.view());
     if (*json) {
       nlohmann::json j = topology_json(stats);
       j["file"] = *path;
+      if (build.topology_checked) j["cleaning"] = cleaning_json(build);
       print_json(j);
     } else {
       print_topology(*path, stats);
+      if (build.topology_checked) print_cleaning(stdout, build, "  ");
     }
   });
 }
@@ -216,6 +276,7 @@ void add_ingest_command(CLI::App& app) {
                         {"key_buckets", report.key_buckets},
                         {"vertex_ranges", report.vertex_ranges},
                         {"polygons_split", report.polygons_split}};
+    if (report.topology_checked) j["cleaning"] = cleaning_json(report);
     if (*json) {
       print_json(j);
       return;
@@ -228,6 +289,7 @@ void add_ingest_command(CLI::App& app) {
                  format_bytes(double(in_bytes) / std::max(1e-9, total)).c_str(),
                  format_memory_size(report.memory_limit).c_str(), format_memory_size(peak.bytes).c_str(),
                  peak.source == PeakSource::Cgroup ? "cgroup" : "RSS", format_bytes(double(report.spilled_bytes)).c_str());
+    if (report.cleaning.rebuilt) print_cleaning(stderr, report, "  ");
   });
 }
 

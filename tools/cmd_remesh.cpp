@@ -20,6 +20,8 @@ namespace streamcvd::cli {
 
 nlohmann::json quality_json(const QualityStats& q);  // cmd_inspect.cpp
 void print_quality(const QualityStats& q);
+nlohmann::json cleaning_json(const StoreBuildReport& build);
+void print_cleaning(std::FILE* out, const StoreBuildReport& build, const char* indent);
 
 namespace {
 
@@ -76,7 +78,16 @@ nlohmann::json guarantee_checks(const PipelineResult& r, uint32_t requested, boo
   j["input_components_with_clusters"] = rm.components.input_components;
   j["output_components"] = rm.components.output_components;
   if (!components_ok) j["component_problems"] = rm.components.problems;
-  all_ok = manifold_ok && closed_ok && genus_ok && !rm.topology_changed && rm.defect_vertices == 0 && components_ok;
+  // Against the input as cleaned (its sheets and their boundaries, streaming/store_clean.h): a
+  // hole below the output resolution may close, none may open; no piece may come apart.
+  const bool holes_ok = out.boundary_loops <= rm.components.input_boundary_loops;
+  const bool pieces_ok = out.components <= rm.components.input_components;
+  j["cleaned_input_boundary_loops"] = rm.components.input_boundary_loops;
+  j["output_boundary_loops"] = out.boundary_loops;
+  j["holes_ok"] = holes_ok;
+  j["pieces_ok"] = pieces_ok;
+  all_ok = manifold_ok && closed_ok && genus_ok && !rm.topology_changed && rm.defect_vertices == 0 && components_ok &&
+           holes_ok && pieces_ok;
   j["all_ok"] = all_ok;
   return j;
 }
@@ -98,6 +109,12 @@ std::string failed_checks(const nlohmann::json& checks) {
   if (checks.value("topology_changed", false)) add("topology changed (faces deleted around defects)");
   if (checks.value("defect_vertices_after_repair", 0) > 0)
     add(std::to_string(checks.value("defect_vertices_after_repair", 0)) + " vertices still on defects");
+  if (!checks.value("holes_ok", true))
+    add(std::to_string(checks.value("output_boundary_loops", 0)) + " boundary loops, the cleaned input has " +
+        std::to_string(checks.value("cleaned_input_boundary_loops", 0)));
+  if (!checks.value("pieces_ok", true))
+    add(std::to_string(checks.value("output_components", 0)) + " components, the cleaned input has " +
+        std::to_string(checks.value("input_components_with_clusters", 0)) + " with clusters");
   if (!checks.value("components_ok", true)) {
     std::string list;
     for (const auto& p : checks["component_problems"]) list += (list.empty() ? "" : ", ") + p.get<std::string>();
@@ -309,6 +326,7 @@ void add_remesh_command(CLI::App& app) {
                     {"subdivision_levels", r.subdivision_levels},
                     {"remeshed_vertices", r.remeshed_vertices},
                     {"remeshed_faces", r.remeshed_faces}};
+      if (r.input_build.topology_checked) j["cleaning"] = cleaning_json(r.input_build);
       j["options"] = {{"vertices", args->vertices},
                       {"threads", args->threads},
                       {"clustering_threads", clustering_thread_count(args->threads)},
@@ -334,6 +352,7 @@ void add_remesh_command(CLI::App& app) {
                       {"placement", rm.seconds.placement}, {"checks", rm.seconds.checks},
                       {"attributes", rm.seconds.attributes},
                       {"summary", r.summary_seconds},
+                      {"cleaning", r.input_build.cleaning.seconds},
                       {"write", write_seconds},           {"total", total}};
       j["clustering"] = {{"clusters", rm.clusters},
                          {"unconstrained_loops", cr.unconstrained_loops},
@@ -404,6 +423,7 @@ void add_remesh_command(CLI::App& app) {
       std::fprintf(stderr, "  input  %llu vertices, %llu faces, %llu components%s\n",
                    (unsigned long long)r.input.vertices, (unsigned long long)r.input.faces,
                    (unsigned long long)r.input.components, r.subdivision_levels ? " (subdivided)" : "");
+      if (r.input_build.cleaning.rebuilt) print_cleaning(stderr, r.input_build, "  ");
       std::fprintf(stderr, "  output %llu vertices (%llu clusters + %llu on boundary strips), %llu faces, Qav %.3f, angles<30 %.2f%%\n",
                    (unsigned long long)r.output_topology.vertices,
                    (unsigned long long)(r.output_topology.vertices - rm.boundary_vertices_added),

@@ -1,0 +1,373 @@
+// The store build's topology cleaning (streaming/store_clean.h) on generated defective inputs
+// with known answers: duplicated faces, a fin, two closed surfaces sharing an edge or a vertex,
+// a book of three sheets. Each is built (counts of what the cleaning did, a manifold result) and
+// remeshed through the CLI (exit 0, manifold output, holes ≤ the cleaned input's, the pieces
+// expected). Also: a clean input's store is the one built without cleaning, byte for byte, and a
+// cleaned store does not depend on the memory limit or the thread count.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "core/shapes.h"
+#include "core/store_stats.h"
+#include "streaming/mesh_io.h"
+#include "streaming/store.h"
+#include "streaming/store_build.h"
+#include "tests/cli_runner.h"
+#include "tests/test_util.h"
+
+namespace streamcvd {
+namespace {
+
+namespace fs = std::filesystem;
+
+MeshStore build(const MeshBuffers& m, StoreBuildReport& report, StoreBuildOptions options = {}) {
+  return MeshStore::build_from_stream([&](MeshSink& sink) { stream_soup(m.view(), sink); }, options, &report);
+}
+
+// Appends `b` to `a` (indices shifted), b's vertex s.first being a's vertex s.second for each
+// pair of `shared`: two surfaces touching there.
+MeshBuffers join(const MeshBuffers& a, const MeshBuffers& b, const std::vector<std::pair<uint32_t, uint32_t>>& shared) {
+  MeshBuffers m = a;
+  std::vector<uint32_t> id(b.vertex_count(), UINT32_MAX);
+  for (const auto& [in_b, in_a] : shared) id[in_b] = in_a;
+  for (uint32_t v = 0; v < b.vertex_count(); ++v) {
+    if (id[v] != UINT32_MAX) continue;
+    id[v] = m.vertex_count();
+    m.positions.insert(m.positions.end(), &b.positions[3 * v], &b.positions[3 * v] + 3);
+  }
+  for (uint32_t t : b.triangles) m.triangles.push_back(id[t]);
+  return m;
+}
+
+// The point reflection of a closed surface through p (faces turned back outward): it touches
+// the original only at p's edge or vertex when p is one of its edge midpoints or vertices.
+MeshBuffers reflected(const MeshBuffers& m, const float* p) {
+  MeshBuffers r = m;
+  for (size_t i = 0; i < r.positions.size(); ++i) r.positions[i] = 2 * p[i % 3] - r.positions[i];
+  for (size_t f = 0; f < r.face_count(); ++f) std::swap(r.triangles[3 * f + 1], r.triangles[3 * f + 2]);
+  return r;
+}
+
+// `a` and its reflection through the midpoint of edge {u, v} (which maps u to v), sharing it.
+MeshBuffers sharing_edge(const MeshBuffers& a, uint32_t u, uint32_t v) {
+  float mid[3];
+  for (int k = 0; k < 3; ++k) mid[k] = 0.5f * (a.positions[3 * u + k] + a.positions[3 * v + k]);
+  return join(a, reflected(a, mid), {{u, v}, {v, u}});
+}
+
+// `a` and its reflection through vertex p, sharing it.
+MeshBuffers sharing_vertex(const MeshBuffers& a, uint32_t p) {
+  return join(a, reflected(a, &a.positions[3 * p]), {{p, p}});
+}
+
+MeshBuffers sphere() { return make_icosphere(3); }  // 642 vertices, 1,280 faces, closed
+
+// Every 50th face of a closed sphere repeated (every other one reversed).
+MeshBuffers with_duplicates(uint64_t& duplicates) {
+  MeshBuffers m = sphere();
+  const uint64_t F = m.face_count();
+  duplicates = 0;
+  for (uint64_t f = 0; f < F; f += 50, ++duplicates) {
+    const uint32_t* t = &m.triangles[3 * f];
+    const uint32_t a = t[0], b = t[1], c = t[2];
+    if (duplicates % 2) m.triangles.insert(m.triangles.end(), {a, c, b});
+    else m.triangles.insert(m.triangles.end(), {b, c, a});
+  }
+  return m;
+}
+
+// A sphere with a fin: two triangles standing out of the surface along the edge of face 0.
+MeshBuffers with_fin() {
+  MeshBuffers m = sphere();
+  const uint32_t a = m.triangles[0], b = m.triangles[1];
+  float mid[3], out[3], far_end[3];
+  for (int k = 0; k < 3; ++k) mid[k] = 0.5f * (m.positions[3 * a + k] + m.positions[3 * b + k]);
+  const float len = std::sqrt(mid[0] * mid[0] + mid[1] * mid[1] + mid[2] * mid[2]);
+  for (int k = 0; k < 3; ++k) out[k] = mid[k] * (1 + 0.3f / len), far_end[k] = m.positions[3 * b + k] * 1.3f;
+  const uint32_t c = m.vertex_count(), d = c + 1;
+  m.positions.insert(m.positions.end(), out, out + 3);
+  m.positions.insert(m.positions.end(), far_end, far_end + 3);
+  m.triangles.insert(m.triangles.end(), {a, b, c, b, d, c});
+  return m;
+}
+
+MeshBuffers spheres_sharing_an_edge() {
+  const MeshBuffers a = sphere();
+  return sharing_edge(a, a.triangles[0], a.triangles[1]);
+}
+
+MeshBuffers spheres_sharing_a_vertex() { return sharing_vertex(sphere(), 0); }
+
+// Three square sheets (8 × 8 quads each) hinged on the edge x ∈ [0, 1] of the x axis, at 0°,
+// 120° and 240° about it; the middle one oriented the other way, so that it continues one of the
+// others across the hinge (one pair) and the third stays a sheet of its own.
+MeshBuffers book() {
+  MeshBuffers m;
+  const int n = 8;
+  const float pi = 3.14159265f;
+  // The hinge vertices first (shared), then each sheet's rows off the hinge.
+  for (int i = 0; i <= n; ++i) m.positions.insert(m.positions.end(), {float(i) / n, 0, 0});
+  for (int s = 0; s < 3; ++s) {
+    const float angle = 2 * pi * float(s) / 3, cy = std::cos(angle), cz = std::sin(angle);
+    const uint32_t base = m.vertex_count();
+    for (int j = 1; j <= n; ++j)
+      for (int i = 0; i <= n; ++i) m.positions.insert(m.positions.end(), {float(i) / n, cy * j / n, cz * j / n});
+    auto id = [&](int i, int j) { return j == 0 ? uint32_t(i) : base + uint32_t((j - 1) * (n + 1) + i); };
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const uint32_t q[4] = {id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)};
+        if (s == 1) m.triangles.insert(m.triangles.end(), {q[0], q[2], q[1], q[0], q[3], q[2]});
+        else m.triangles.insert(m.triangles.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
+      }
+  }
+  return m;
+}
+
+void expect_manifold(const TopologyStats& s) {
+  EXPECT_EQ(s.nonmanifold_edges, 0u);
+  EXPECT_EQ(s.nonmanifold_vertices, 0u);
+  EXPECT_EQ(s.duplicate_faces, 0u);
+  EXPECT_EQ(s.degenerate_faces, 0u);
+}
+
+// Every store vertex sits where the input vertex it names is.
+void expect_original_positions(const MeshStore& store, const MeshBuffers& input) {
+  const auto orig = store.original_vertex_ids();
+  const MeshView v = store.view();
+  for (uint32_t i = 0; i < v.vertex_count(); ++i) {
+    ASSERT_LT(orig[i], input.vertex_count());
+    EXPECT_EQ(std::memcmp(&v.positions[3 * size_t(i)], &input.positions[3 * size_t(orig[i])], 12), 0) << i;
+  }
+}
+
+TEST(StoreClean, DuplicatedFacesAreDropped) {
+  uint64_t duplicates = 0;
+  const MeshBuffers m = with_duplicates(duplicates);
+  StoreBuildReport r;
+  MeshStore store = build(m, r);
+  ASSERT_TRUE(r.topology_checked);
+  EXPECT_EQ(r.input_topology.duplicate_faces, duplicates);  // the input as read, as `info` counts it
+  EXPECT_TRUE(r.cleaning.rebuilt);
+  EXPECT_EQ(r.cleaning.duplicate_faces_dropped, duplicates);
+  EXPECT_EQ(r.cleaning.vertex_copies, 0u);
+  const TopologyStats s = compute_topology_stats(store.view());
+  expect_manifold(s);
+  EXPECT_TRUE(s.closed_manifold);
+  EXPECT_TRUE(s.consistently_oriented);  // the reversed copies lost against their neighbours
+  EXPECT_EQ(s.faces, 1280u);
+  EXPECT_EQ(s.genus, 0);
+  expect_original_positions(store, m);
+}
+
+TEST(StoreClean, FinBecomesAPieceOfItsOwn) {
+  const MeshBuffers m = with_fin();
+  StoreBuildReport r;
+  MeshStore store = build(m, r);
+  EXPECT_EQ(r.input_topology.nonmanifold_edges, 1u);
+  EXPECT_EQ(r.cleaning.nonmanifold_edges_cut, 1u);
+  EXPECT_EQ(r.cleaning.unpaired_edge_faces, 1u);
+  EXPECT_EQ(r.cleaning.vertex_copies, 2u);  // the hinge's two ends, once each
+  const TopologyStats s = r.cleaning.cleaned;
+  expect_manifold(s);
+  EXPECT_EQ(s.components, 2u);
+  EXPECT_EQ(s.boundary_loops, 1u);  // the fin's; the sphere stays closed
+  EXPECT_EQ(r.cleaning.sheets_made(r.input_topology), 1);
+  expect_original_positions(store, m);
+}
+
+TEST(StoreClean, ClosedSurfacesSharingAnEdgeComeApartClosed) {
+  const MeshBuffers m = spheres_sharing_an_edge();
+  StoreBuildReport r;
+  MeshStore store = build(m, r);
+  EXPECT_EQ(r.input_topology.nonmanifold_edges, 1u);
+  EXPECT_EQ(r.input_topology.components, 1u);
+  EXPECT_EQ(r.cleaning.nonmanifold_edges_cut, 1u);
+  EXPECT_EQ(r.cleaning.unpaired_edge_faces, 0u);
+  EXPECT_EQ(r.cleaning.vertex_copies, 2u);
+  const TopologyStats s = r.cleaning.cleaned;
+  expect_manifold(s);
+  EXPECT_EQ(s.components, 2u);
+  EXPECT_EQ(s.boundary_loops, 0u);
+  EXPECT_TRUE(s.closed_manifold);
+  EXPECT_EQ(s.euler_characteristic, 4);  // two spheres
+  expect_original_positions(store, m);
+}
+
+TEST(StoreClean, ClosedSurfacesSharingAVertexComeApartClosed) {
+  const MeshBuffers m = spheres_sharing_a_vertex();
+  StoreBuildReport r;
+  MeshStore store = build(m, r);
+  EXPECT_EQ(r.input_topology.nonmanifold_edges, 0u);
+  EXPECT_EQ(r.input_topology.nonmanifold_vertices, 1u);
+  EXPECT_EQ(r.cleaning.vertices_split, 1u);
+  EXPECT_EQ(r.cleaning.vertex_copies, 1u);
+  const TopologyStats s = r.cleaning.cleaned;
+  expect_manifold(s);
+  EXPECT_EQ(s.components, 2u);
+  EXPECT_TRUE(s.closed_manifold);
+  EXPECT_EQ(s.euler_characteristic, 4);
+  expect_original_positions(store, m);
+}
+
+TEST(StoreClean, BookOfThreeSheetsPairsTwo) {
+  const MeshBuffers m = book();
+  StoreBuildReport r;
+  MeshStore store = build(m, r);
+  EXPECT_EQ(r.input_topology.nonmanifold_edges, 8u);  // the hinge's 8 edges
+  EXPECT_EQ(r.input_topology.components, 1u);
+  EXPECT_EQ(r.cleaning.nonmanifold_edges_cut, 8u);
+  EXPECT_EQ(r.cleaning.unpaired_edge_faces, 8u);  // the third sheet's hinge faces
+  EXPECT_EQ(r.cleaning.vertex_copies, 9u);       // the 9 hinge vertices, once each
+  const TopologyStats s = r.cleaning.cleaned;
+  expect_manifold(s);
+  EXPECT_EQ(s.components, 2u);      // two sheets continuing each other, and the third
+  EXPECT_EQ(s.boundary_loops, 2u);
+  EXPECT_TRUE(s.consistently_oriented);
+  expect_original_positions(store, m);
+}
+
+TEST(StoreClean, RepeatedIndexFacesGoZeroAreaFacesOfAManifoldStay) {
+  MeshBuffers m = sphere();
+  const uint32_t a = m.triangles[0], b = m.triangles[1], c = m.triangles[2];
+  m.triangles.insert(m.triangles.end(), {a, a, b});
+  StoreBuildReport r;
+  build(m, r);
+  EXPECT_TRUE(r.cleaning.rebuilt);
+  EXPECT_EQ(r.cleaning.degenerate_faces_dropped, 1u);
+  EXPECT_TRUE(r.cleaning.cleaned.closed_manifold);
+  // Corner c moved onto corner a: a zero-area face inside a manifold, which dropping would open.
+  MeshBuffers flat = sphere();
+  for (int k = 0; k < 3; ++k) flat.positions[3 * c + k] = flat.positions[3 * a + k];
+  StoreBuildReport f;
+  build(flat, f);
+  EXPECT_GE(f.input_topology.degenerate_faces, 1u);
+  EXPECT_FALSE(f.cleaning.rebuilt);
+}
+
+TEST(StoreClean, CleanInputIsTheStoreAsBuilt) {
+  const MeshBuffers m = make_torus(40, 30);
+  StoreBuildReport r;
+  MeshStore cleaned = build(m, r);
+  EXPECT_TRUE(r.topology_checked);
+  EXPECT_FALSE(r.cleaning.rebuilt);
+  StoreBuildOptions raw;
+  raw.clean_topology = false;
+  MeshStore as_read = MeshStore::build(m.view(), raw);
+  ASSERT_EQ(std::memcmp(&cleaned.header(), &as_read.header(), sizeof(StoreHeader)), 0);
+  ASSERT_EQ(cleaned.view().triangles.size(), as_read.view().triangles.size());
+  EXPECT_EQ(std::memcmp(cleaned.view().triangles.data(), as_read.view().triangles.data(),
+                        cleaned.view().triangles.size_bytes()),
+            0);
+  EXPECT_EQ(std::memcmp(cleaned.view().positions.data(), as_read.view().positions.data(),
+                        cleaned.view().positions.size_bytes()),
+            0);
+}
+
+void expect_same_store(const MeshStore& a, const MeshStore& b) {
+  ASSERT_EQ(std::memcmp(&a.header(), &b.header(), sizeof(StoreHeader)), 0);
+  const MeshView x = a.view(), y = b.view();
+  auto same = [](auto s, auto t) {
+    return s.size() == t.size() && (s.empty() || std::memcmp(s.data(), t.data(), s.size_bytes()) == 0);
+  };
+  EXPECT_TRUE(same(x.positions, y.positions));
+  EXPECT_TRUE(same(x.triangles, y.triangles));
+  EXPECT_TRUE(same(x.vertex_vertex_offsets, y.vertex_vertex_offsets));
+  EXPECT_TRUE(same(x.vertex_vertex, y.vertex_vertex));
+  EXPECT_TRUE(same(x.vertex_face, y.vertex_face));
+  EXPECT_TRUE(same(x.vertex_flags, y.vertex_flags));
+  EXPECT_TRUE(same(x.chunks, y.chunks));
+  EXPECT_TRUE(same(a.original_vertex_ids(), b.original_vertex_ids()));
+}
+
+TEST(StoreClean, CleanedStoreIndependentOfMemoryAndThreads) {
+  // A big defective input: a sphere of 40,962 vertices with every 50th face doubled, then its
+  // reflection through a vertex, then that pair's reflection through an edge, in many chunks.
+  MeshBuffers m = make_icosphere(6);
+  const uint64_t F = m.face_count();
+  for (uint64_t f = 0; f < F; f += 50)
+    m.triangles.insert(m.triangles.end(), {m.triangles[3 * f + 2], m.triangles[3 * f + 1], m.triangles[3 * f]});
+  m = sharing_vertex(m, 0);
+  m = sharing_edge(m, m.triangles[0], m.triangles[1]);
+  const StoreBuildOptions options{.faces_per_chunk = 4000};
+  StoreBuildReport r;
+  MeshStore reference = build(m, r, options);
+  EXPECT_TRUE(r.cleaning.rebuilt);
+  expect_manifold(r.cleaning.cleaned);
+  {
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    StoreBuildReport r1;
+    expect_same_store(reference, build(m, r1, options));
+  }
+  const fs::path root = test::temp_dir("store_clean");
+  const fs::path ply = root / "defective.ply";
+  write_mesh(ply.string(), m.view());
+  StoreBuildOptions limited = options;
+  limited.memory_limit = uint64_t(40) << 20;
+  limited.work_directory = root.string();
+  StoreBuildReport r2;
+  MeshStore ingested = MeshStore::ingest(ply.string(), (root / "store").string(), limited, {}, &r2);
+  EXPECT_TRUE(r2.cleaning.rebuilt);
+  EXPECT_GT(r2.spilled_bytes, 0u);  // the limit did force the external-memory paths
+  expect_same_store(reference, ingested);
+  const MeshStore opened = MeshStore::open((root / "store").string());
+  expect_same_store(reference, opened);
+  // The store keeps the input's figures as read and the cleaning's counts (cleaning.txt).
+  StoreBuildReport kept;
+  ASSERT_TRUE(opened.cleaning_report(kept));
+  EXPECT_EQ(kept.input_topology.duplicate_faces, r.input_topology.duplicate_faces);
+  EXPECT_EQ(kept.input_topology.nonmanifold_edges, r.input_topology.nonmanifold_edges);
+  EXPECT_EQ(kept.input_topology.euler_characteristic, r.input_topology.euler_characteristic);
+  EXPECT_EQ(kept.cleaning.vertex_copies, r.cleaning.vertex_copies);
+  EXPECT_EQ(kept.cleaning.rounds, r.cleaning.rounds);
+  StoreBuildReport none;
+  EXPECT_FALSE(MeshStore::build(make_torus(20, 10).view()).cleaning_report(none));
+  fs::remove_all(root);
+}
+
+// ---- Remeshed through the CLI -------------------------------------------------------------------
+
+struct Expected {
+  const char* name;
+  MeshBuffers mesh;
+  uint64_t pieces;  // output components
+};
+
+TEST(StoreClean, DefectiveInputsRemeshToManifoldOutputs) {
+  if (!test::cli_available()) GTEST_SKIP() << "no CLI";
+  uint64_t duplicates = 0;
+  std::vector<Expected> cases;
+  cases.push_back({"duplicates", with_duplicates(duplicates), 1});
+  cases.push_back({"fin", with_fin(), 2});
+  cases.push_back({"edge", spheres_sharing_an_edge(), 2});
+  cases.push_back({"vertex", spheres_sharing_a_vertex(), 2});
+  cases.push_back({"book", book(), 2});
+  const fs::path dir = test::temp_dir("store_clean_cli");
+  for (const Expected& c : cases) {
+    const std::string in = (dir / (std::string(c.name) + ".ply")).string();
+    write_mesh(in, c.mesh.view());
+    for (const char* n : {"60", "200", "500"}) {
+      SCOPED_TRACE(std::string(c.name) + " N=" + n);
+      const std::string out = (dir / "out.ply").string(), report = (dir / "r.json").string();
+      const test::CliResult r = test::run_cli({"remesh", in, "-o", out, "-n", n, "--report", report, "-q"});
+      ASSERT_EQ(r.exit_code, 0) << r.describe();
+      const nlohmann::json j = nlohmann::json::parse(test::slurp(report));
+      const nlohmann::json& k = j["checks"];
+      EXPECT_TRUE(k["all_ok"].get<bool>()) << k.dump();
+      EXPECT_EQ(k["output_nonmanifold_edges"].get<uint64_t>(), 0u);
+      EXPECT_EQ(k["output_nonmanifold_vertices"].get<uint64_t>(), 0u);
+      EXPECT_LE(j["output"]["boundary_loops"].get<uint64_t>(), j["cleaning"]["cleaned_boundary_loops"].get<uint64_t>());
+      EXPECT_EQ(j["output"]["components"].get<uint64_t>(), c.pieces);
+      EXPECT_EQ(j["clustering"]["defect_faces_removed"].get<uint64_t>(), 0u);
+      EXPECT_TRUE(j["cleaning"]["rebuilt"].get<bool>());
+    }
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace streamcvd

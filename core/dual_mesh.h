@@ -20,6 +20,13 @@ struct DualMeshOptions {
   /// holes below the output resolution: they close (one triangle for 3 clusters, else a fan
   /// from the loop's centroid) instead of getting a strip of slivers. 0 = never.
   double close_hole_perimeter = 0;
+  /// Typical output edge length (typical_dual_edge), 0 = off. When set, the strip follows the
+  /// clusters' spacing rather than the input's boundary edges: consecutive cluster changes whose
+  /// strip points are closer than half of it share one point (while the clusters around the
+  /// point are distinct and the loop keeps 3 points), and a Douglas–Peucker corner must also
+  /// leave its chord by a fifth of it. Scan holes are jagged: without this, strip chords are a
+  /// seventh of an output edge and every strip triangle is a needle.
+  double strip_spacing = 0;
 };
 
 /// A typical output edge length for `clusters` clusters on a surface of area `area`: the side

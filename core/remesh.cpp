@@ -232,6 +232,7 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
   dual_options.boundary_strips = options.boundary_strips;
   // Holes whose loop is shorter than ~2 output edges close instead of getting sliver strips.
   dual_options.close_hole_perimeter = 2.0 * typical_dual_edge(items.total_area, options.vertices);
+  dual_options.strip_spacing = typical_dual_edge(items.total_area, options.vertices);  // strip points about an edge apart
   // Repair the clustering around dual-mesh defects (labels only; re-checks just the changed
   // region each round), then build the dual once and check it as a whole.
   DefectRepairOptions repair_options;

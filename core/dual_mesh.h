@@ -36,10 +36,12 @@ double typical_dual_edge(double area, uint32_t clusters);
 /// Where a boundary-strip vertex lies: at the mean of the input vertices
 /// DualMesh::source_vertices[begin, begin + count) — the two ends of the boundary edge whose
 /// midpoint it is, the one input vertex a Douglas–Peucker corner copies, or every vertex of the
-/// hole whose centroid closes it. count = 0 for a cluster vertex. Per-vertex input data (colours)
-/// is interpolated the same way (core/vertex_attributes.h).
+/// hole whose centroid closes it. count = 0 for a cluster vertex. With count = 2 the vertex is at
+/// (1 − t)·first + t·second (0.5 from the dual; the strip shaping slides it, core/strip_shape.h).
+/// Per-vertex input data (colours) is interpolated the same way (core/vertex_attributes.h).
 struct VertexSource {
   uint32_t begin = 0, count = 0;
+  float t = 0.5f;
 };
 
 struct DualMesh {

@@ -75,9 +75,11 @@ struct Strip {
   std::span<const uint32_t> faces(uint32_t v) const { return {vf.data() + vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]}; }
 };
 
-// The smallest Q (and the Q sum) of v's faces with v at p; −1 when a face would fold: a
-// well-shaped face turning past `cos_turn` (`cos_turn_strip` on the strip), a sliver pointing
-// away from the surface normal n (a sliver's own normal is noise).
+// v's faces with v at p: smallest Q, Q sum and Σ 1/Q — the score a move must lower (it weighs
+// every face, and a sliver most; max-min alone stalls wherever the worst face cannot improve).
+// q_min = −1 when a face would fold: a well-shaped face turning past `cos_turn`
+// (`cos_turn_strip` on the strip), a sliver pointing away from the surface normal n (a sliver's
+// own normal is noise).
 struct FanScore {
   double q_min = -1, q_sum = 0, inv_sum = 0;
   bool better_than(const FanScore& o) const {

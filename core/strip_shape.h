@@ -2,11 +2,12 @@
 // boundary edge where the cluster changes, and the cluster vertices next to the boundary sit
 // where their clusters' centroids project — on a small scan hole, often on the rim itself — so
 // strip triangles come out as slivers (Qav ~0.4 on the dragon against ~0.87 inside). This pass
-// moves the vertices of the strips to maximise the smallest Q of their fans (a max-min local
-// optimisation, as in Freitag & Ollivier-Gooch 1997, "Tetrahedral mesh improvement using
-// swapping and smoothing"): strip vertices slide along the input boundary polyline between
-// their two boundary neighbours, so the boundary stays on the input; the cluster vertices
-// around them move on the input surface. Connectivity and the vertex count are unchanged.
+// moves the vertices of the strips to lower Σ 1/Q over their fans (optimisation-based
+// smoothing as in Freitag & Ollivier-Gooch 1997, "Tetrahedral mesh improvement using swapping
+// and smoothing", with a barrier-like score instead of max-min): strip vertices slide along the
+// input boundary polyline between their two boundary neighbours, so the boundary stays on the
+// input; the cluster vertices around them move on the input surface. Connectivity changes only
+// by max-min edge flips; the vertices, the boundary edges and the topology stay.
 #pragma once
 
 #include <cstdint>
@@ -63,7 +64,7 @@ StripQuality strip_face_quality(std::span<const float> positions, std::span<cons
 /// neighbours slide along their loop; their sources are updated to the input edge (or vertex)
 /// they end on. Cluster vertices with movable[v] ≠ 0 that are interior and next to such a strip
 /// vertex move on `surface`, from the input face surface_face[v] (updated; UINT32_MAX = does not
-/// move). A move is kept only when it raises the smallest Q of the vertex's faces, folds none of
+/// move). A move is kept only when it lowers Σ 1/Q over the vertex's faces, folds none of
 /// them against the surface normal and turns no well-shaped face off the strip more than the
 /// limit. movable and surface_face hold one entry per output vertex; throws InputError
 /// otherwise. O(strip size · sweeps · fan size) plus O(F) set-up. Deterministic (fixed order).

@@ -192,32 +192,59 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
       }
     }
     // One strip point per change, except that consecutive changes whose midpoints coincide
-    // (coincident input vertices) share one point, so no strip triangle is flat.
+    // (coincident input vertices) share one point, so no strip triangle is flat; with a strip
+    // spacing, also those closer than half of it, as long as the clusters meeting at the shared
+    // point are distinct (a repeated one would give the point two fans).
     std::vector<std::array<float, 3>> points;
     std::vector<Edge> point_edges;  // the boundary edge each point is the midpoint of
     std::vector<uint32_t> point_of_change(changes.size());
-    for (uint32_t t = 0; t < changes.size(); ++t) {
-      const Edge e = edge(changes[t]);
-      std::array<float, 3> p;
-      for (int c = 0; c < 3; ++c) p[c] = 0.5f * (P[3 * e.from + c] + P[3 * e.to + c]);
-      if (!points.empty() && points.back() == p) {
-        point_of_change[t] = uint32_t(points.size() - 1);
-        continue;
+    auto make_points = [&](double merge_distance) {
+      points.clear();
+      point_edges.clear();
+      const double merge2 = merge_distance * merge_distance;
+      std::vector<int32_t> run, first_run;  // clusters around the current (first) point
+      auto distinct_from = [](const std::vector<int32_t>& r, int32_t c) { return std::find(r.begin(), r.end(), c) == r.end(); };
+      auto close = [&](const std::array<float, 3>& p, const std::array<float, 3>& q) {
+        double d2 = 0;
+        for (int c = 0; c < 3; ++c) d2 += (double(p[c]) - q[c]) * (double(p[c]) - q[c]);
+        return d2 < merge2;
+      };
+      for (uint32_t t = 0; t < changes.size(); ++t) {
+        const Edge e = edge(changes[t]);
+        std::array<float, 3> p;
+        for (int c = 0; c < 3; ++c) p[c] = 0.5f * (P[3 * e.from + c] + P[3 * e.to + c]);
+        if (!points.empty() && (points.back() == p || (close(p, points.back()) && distinct_from(run, labels[e.to])))) {
+          point_of_change[t] = uint32_t(points.size() - 1);
+          run.push_back(labels[e.to]);
+          continue;
+        }
+        if (points.size() == 1) first_run = run;
+        run = {labels[e.from], labels[e.to]};
+        point_of_change[t] = uint32_t(points.size());
+        points.push_back(p);
+        point_edges.push_back(e);
       }
-      point_of_change[t] = uint32_t(points.size());
-      points.push_back(p);
-      point_edges.push_back(e);
-    }
-    if (points.size() > 1 && points.back() == points.front()) {
-      for (uint32_t t = 0; t < changes.size(); ++t)
-        if (point_of_change[t] == points.size() - 1) point_of_change[t] = 0;
-      points.pop_back();
-      point_edges.pop_back();
-    }
+      if (points.size() == 1) first_run = run;
+      // The last point joins the first: the last run ends with the cluster the first run starts with.
+      bool wrap = points.size() > 1 && points.back() == points.front();
+      if (!wrap && points.size() > 3 && close(points.back(), points.front())) {
+        wrap = true;
+        for (size_t i = 1; i < first_run.size() && wrap; ++i) wrap = distinct_from(run, first_run[i]);
+      }
+      if (wrap) {
+        for (uint32_t t = 0; t < changes.size(); ++t)
+          if (point_of_change[t] == points.size() - 1) point_of_change[t] = 0;
+        points.pop_back();
+        point_edges.pop_back();
+      }
+    };
+    make_points(0.5 * options.strip_spacing);
+    if (points.size() < 3 && options.strip_spacing > 0) make_points(0);  // a hole keeps its 3 points
     if (points.size() < 3) {
       ++dual.holes_closed;
       continue;
     }
+    const double corner_d2 = 0.04 * options.strip_spacing * options.strip_spacing;  // (a fifth of it)²
     const uint32_t first_new = dual.mesh.vertex_count();
     for (size_t i = 0; i < points.size(); ++i) {
       const uint32_t ends[2] = {point_edges[i].from, point_edges[i].to};
@@ -244,7 +271,7 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
         double chord[3] = {double(pb[0]) - pa[0], double(pb[1]) - pa[1], double(pb[2]) - pa[2]};
         double chord2 = chord[0] * chord[0] + chord[1] * chord[1] + chord[2] * chord[2];
         int64_t far = -1;
-        double far_d2 = 0.09 * chord2;
+        double far_d2 = std::max(0.09 * chord2, corner_d2);
         for (int64_t i = chain_index[c] + 1; i < chain_index[c + 1]; ++i) {
           const float* q = &P[3 * size_t(loop[(begin + size_t(i)) % n])];
           double d[3] = {double(q[0]) - pa[0], double(q[1]) - pa[1], double(q[2]) - pa[2]};

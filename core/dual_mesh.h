@@ -20,6 +20,13 @@ struct DualMeshOptions {
   /// holes below the output resolution: they close (one triangle for 3 clusters, else a fan
   /// from the loop's centroid) instead of getting a strip of slivers. 0 = never.
   double close_hole_perimeter = 0;
+  /// Typical output edge length (typical_dual_edge), 0 = off. When set, the strip follows the
+  /// clusters' spacing rather than the input's boundary edges: consecutive cluster changes whose
+  /// strip points are closer than half of it share one point (while the clusters around the
+  /// point are distinct and the loop keeps 3 points), and a Douglas–Peucker corner must also
+  /// leave its chord by a fifth of it. Scan holes are jagged: without this, strip chords are a
+  /// seventh of an output edge and every strip triangle is a needle.
+  double strip_spacing = 0;
 };
 
 /// A typical output edge length for `clusters` clusters on a surface of area `area`: the side
@@ -29,10 +36,12 @@ double typical_dual_edge(double area, uint32_t clusters);
 /// Where a boundary-strip vertex lies: at the mean of the input vertices
 /// DualMesh::source_vertices[begin, begin + count) — the two ends of the boundary edge whose
 /// midpoint it is, the one input vertex a Douglas–Peucker corner copies, or every vertex of the
-/// hole whose centroid closes it. count = 0 for a cluster vertex. Per-vertex input data (colours)
-/// is interpolated the same way (core/vertex_attributes.h).
+/// hole whose centroid closes it. count = 0 for a cluster vertex. With count = 2 the vertex is at
+/// (1 − t)·first + t·second (0.5 from the dual; the strip shaping slides it, core/strip_shape.h).
+/// Per-vertex input data (colours) is interpolated the same way (core/vertex_attributes.h).
 struct VertexSource {
   uint32_t begin = 0, count = 0;
+  float t = 0.5f;
 };
 
 struct DualMesh {

@@ -200,57 +200,6 @@ uint64_t flip_pass(Work& w, std::vector<uint32_t>& stack, std::vector<uint8_t>& 
   return flips;
 }
 
-// Closest point of the surface to p near `face`: a straight walk in the surface (Devillers et
-// al. 2002, "Walking in a triangulation") towards the face whose plane projection of p has
-// non-negative barycentric coordinates, crossing the edge opposite the most negative one.
-// Moves are a fraction of an output edge, so the walk is a few faces long. On a boundary or
-// when the walk turns back (across a crease), the closest point of the faces seen is kept.
-uint32_t project_walk(const MeshView& s, uint32_t face, const Vec3& p, Vec3& q) {
-  auto corner = [&](uint32_t f, int k) { return point(s.positions, s.triangles[3 * size_t(f) + k]); };
-  uint32_t previous = UINT32_MAX;
-  for (int step = 0; step < 32; ++step) {
-    const uint32_t* t = &s.triangles[3 * size_t(face)];
-    const Vec3 a = point(s.positions, t[0]), b = point(s.positions, t[1]), c = point(s.positions, t[2]);
-    const Vec3 n = area_vector(a, b, c);
-    const double nn = dot(n, n);
-    if (nn <= 0) break;
-    // Unnormalized barycentric coordinates of p's projection on the face's plane.
-    const double w[3] = {dot(cross(sub(c, b), sub(p, b)), n), dot(cross(sub(a, c), sub(p, c)), n),
-                         dot(cross(sub(b, a), sub(p, a)), n)};
-    if (w[0] >= 0 && w[1] >= 0 && w[2] >= 0) {
-      q = sub(p, scale(n, dot(sub(p, a), n) / nn));
-      return face;
-    }
-    const int k = w[0] <= w[1] && w[0] <= w[2] ? 0 : (w[1] <= w[2] ? 1 : 2);
-    const uint32_t u = t[(k + 1) % 3], v = t[(k + 2) % 3];
-    // The face across edge u-v: the other face in both (ascending) face lists.
-    uint32_t next = UINT32_MAX;
-    const auto fu = s.faces_of(u), fv = s.faces_of(v);
-    for (size_t i = 0, j = 0; i < fu.size() && j < fv.size();) {
-      if (fu[i] < fv[j]) ++i;
-      else if (fv[j] < fu[i]) ++j;
-      else if (fu[i] == face) ++i, ++j;
-      else {
-        next = fu[i];
-        break;
-      }
-    }
-    if (next == UINT32_MAX || next == previous) break;
-    previous = face;
-    face = next;
-  }
-  // Stopped on a boundary, a crease or a degenerate face: the closer of the last two faces.
-  q = closest_point_on_triangle(p, corner(face, 0), corner(face, 1), corner(face, 2));
-  if (previous != UINT32_MAX) {
-    const Vec3 r = closest_point_on_triangle(p, corner(previous, 0), corner(previous, 1), corner(previous, 2));
-    if (dot(sub(r, p), sub(r, p)) < dot(sub(q, p), sub(q, p))) {
-      q = r;
-      return previous;
-    }
-  }
-  return face;
-}
-
 // Vertices that may move: movable, with a surface face to project from, interior (no
 // boundary or non-manifold edge) and not on a feature (no incident edge bent more than the
 // feature angle). Decided once, on the input geometry of the pass.
@@ -361,10 +310,10 @@ uint64_t project_moved(Work& w, const MeshView& surface, std::span<uint32_t> sur
     const Vec3 p = point(w.P, v);
     Vec3 offset{0, 0, 0}, q;
     if (keep_offset) {
-      surface_face[v] = project_walk(surface, surface_face[v], original[v], q);
+      surface_face[v] = closest_point_walk(surface, surface_face[v], original[v], q);
       offset = sub(original[v], q);
     }
-    const uint32_t face = project_walk(surface, surface_face[v], sub(p, offset), q);
+    const uint32_t face = closest_point_walk(surface, surface_face[v], sub(p, offset), q);
     const Vec3 target = add(q, offset);
     bool ok = true;
     for (uint32_t i = vf_offsets[v]; i < vf_offsets[v + 1] && ok; ++i) {
@@ -383,6 +332,56 @@ uint64_t project_moved(Work& w, const MeshView& surface, std::span<uint32_t> sur
 }
 
 }  // namespace
+
+// A straight walk in the surface (Devillers et al. 2002, "Walking in a triangulation") towards
+// the face whose plane projection of p has non-negative barycentric coordinates, crossing the
+// edge opposite the most negative one.
+uint32_t closest_point_walk(const MeshView& s, uint32_t face, const std::array<double, 3>& p, std::array<double, 3>& q) {
+  auto corner = [&](uint32_t f, int k) { return point(s.positions, s.triangles[3 * size_t(f) + k]); };
+  uint32_t previous = UINT32_MAX;
+  for (int step = 0; step < 32; ++step) {
+    const uint32_t* t = &s.triangles[3 * size_t(face)];
+    const Vec3 a = point(s.positions, t[0]), b = point(s.positions, t[1]), c = point(s.positions, t[2]);
+    const Vec3 n = area_vector(a, b, c);
+    const double nn = dot(n, n);
+    if (nn <= 0) break;
+    // Unnormalized barycentric coordinates of p's projection on the face's plane.
+    const double w[3] = {dot(cross(sub(c, b), sub(p, b)), n), dot(cross(sub(a, c), sub(p, c)), n),
+                         dot(cross(sub(b, a), sub(p, a)), n)};
+    if (w[0] >= 0 && w[1] >= 0 && w[2] >= 0) {
+      q = sub(p, scale(n, dot(sub(p, a), n) / nn));
+      return face;
+    }
+    const int k = w[0] <= w[1] && w[0] <= w[2] ? 0 : (w[1] <= w[2] ? 1 : 2);
+    const uint32_t u = t[(k + 1) % 3], v = t[(k + 2) % 3];
+    // The face across edge u-v: the other face in both (ascending) face lists.
+    uint32_t next = UINT32_MAX;
+    const auto fu = s.faces_of(u), fv = s.faces_of(v);
+    for (size_t i = 0, j = 0; i < fu.size() && j < fv.size();) {
+      if (fu[i] < fv[j]) ++i;
+      else if (fv[j] < fu[i]) ++j;
+      else if (fu[i] == face) ++i, ++j;
+      else {
+        next = fu[i];
+        break;
+      }
+    }
+    if (next == UINT32_MAX || next == previous) break;
+    previous = face;
+    face = next;
+  }
+  // Stopped on a boundary, a crease or a degenerate face: the closer of the last two faces.
+  q = closest_point_on_triangle(p, corner(face, 0), corner(face, 1), corner(face, 2));
+  if (previous != UINT32_MAX) {
+    const Vec3 r = closest_point_on_triangle(p, corner(previous, 0), corner(previous, 1), corner(previous, 2));
+    if (dot(sub(r, p), sub(r, p)) < dot(sub(q, p), sub(q, p))) {
+      q = r;
+      return previous;
+    }
+  }
+  return face;
+}
+
 
 double average_triangle_quality(std::span<const float> positions, std::span<const uint32_t> triangles) {
   const size_t F = triangles.size() / 3;

@@ -7,6 +7,7 @@
 // only by flips: vertex and face counts, boundary, manifoldness and genus are unchanged.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -56,6 +57,12 @@ struct MeshOptimizeReport {
 MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<uint32_t> triangles,
                                          std::span<const uint8_t> movable, const MeshView* surface,
                                          std::span<uint32_t> surface_face, const MeshOptimizeOptions& options = {});
+
+/// Closest point q of the surface `s` to p, near input face `face`: a walk of at most 32 faces
+/// towards the face p projects into (moves of the quality passes are a fraction of an output
+/// edge, so the walk is a few faces long). On a boundary, or when the walk turns back (across a
+/// crease), the closer of the last two faces is kept. Returns the face q lies on.
+uint32_t closest_point_walk(const MeshView& s, uint32_t face, const std::array<double, 3>& p, std::array<double, 3>& q);
 
 /// Average triangle quality Q (1 = equilateral, 0 = degenerate) of a triangle soup. O(F).
 double average_triangle_quality(std::span<const float> positions, std::span<const uint32_t> triangles);

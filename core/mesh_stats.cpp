@@ -421,6 +421,23 @@ QualityStats compute_quality(const TriangleSoupView& mesh) {
       regular += valence[v] == 6;
     }
   if (interior > 0) s.percent_valence6 = 100.0 * double(regular) / double(interior);
+  // Boundary faces apart (serial, in face order: the sums are the same on every run).
+  double q_boundary = 0, q_rest = 0;
+  s.q_min_boundary = std::numeric_limits<double>::infinity();
+  for (uint64_t f = 0; f < nf; ++f) {
+    double q, angle[3];
+    triangle_quality(mesh, f, eps, q, angle);
+    if ((mark[tri[3 * f]] | mark[tri[3 * f + 1]] | mark[tri[3 * f + 2]]) & kOnBoundary) {
+      ++s.boundary_triangles;
+      q_boundary += q;
+      s.q_min_boundary = std::min(s.q_min_boundary, q);
+    } else {
+      q_rest += q;
+    }
+  }
+  if (s.boundary_triangles == 0) s.q_min_boundary = 0;
+  if (s.boundary_triangles > 0) s.q_avg_boundary = q_boundary / double(s.boundary_triangles);
+  if (s.triangles > s.boundary_triangles) s.q_avg_off_boundary = q_rest / double(s.triangles - s.boundary_triangles);
   return s;
 }
 

@@ -45,6 +45,11 @@ struct QualityStats {
   double edge_length_mean = 0, edge_length_cv = 0;  ///< coefficient of variation = σ/mean
   std::vector<uint64_t> q_histogram;          ///< 20 bins over [0,1]
   std::vector<uint64_t> min_angle_histogram;  ///< 12 bins of 5° over [0,60]
+  /// Faces with a corner on a boundary edge — in a remesh output, the §VI-D boundary strips —
+  /// and the rest, apart: strip slivers hide in the overall Qav (few faces) but not here.
+  uint64_t boundary_triangles = 0;
+  double q_min_boundary = 0, q_avg_boundary = 0;  ///< over the boundary faces (0 when none)
+  double q_avg_off_boundary = 0;                  ///< over the faces with no boundary corner
 };
 
 /// Computes QualityStats. O(F log F) time (edges by sorting). Thread-safe (pure).

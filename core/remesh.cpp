@@ -7,6 +7,7 @@
 #include "core/placement.h"
 #include "core/errors.h"
 #include "core/flat_faces.h"
+#include "core/strip_shape.h"
 #include "core/lloyd.h"
 #include "core/repair.h"
 
@@ -232,6 +233,7 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
   dual_options.boundary_strips = options.boundary_strips;
   // Holes whose loop is shorter than ~2 output edges close instead of getting sliver strips.
   dual_options.close_hole_perimeter = 2.0 * typical_dual_edge(items.total_area, options.vertices);
+  dual_options.strip_spacing = typical_dual_edge(items.total_area, options.vertices);  // strip points about an edge apart
   // Repair the clustering around dual-mesh defects (labels only; re-checks just the changed
   // region each round), then build the dual once and check it as a whole.
   DefectRepairOptions repair_options;
@@ -331,6 +333,14 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
         optimize_mesh_quality(dual.mesh.positions, dual.mesh.triangles, movable, &mesh, anchors, optimize);
     result.quality_flips = q.flips;
     result.quality_moves = q.moves;
+    if (optimize.relax_iterations > 0) {  // strips after the interior: their cluster neighbours have settled
+      StripShapeOptions strip;
+      strip.keep_surface_offset = optimize.keep_surface_offset;
+      strip.strip_spacing = dual_options.strip_spacing;
+      const StripShapeReport sr = shape_boundary_strips(dual, mesh, boundary_loops, movable, anchors, strip);
+      result.strip_moves = sr.strip_moves + sr.cluster_moves;
+      result.quality_flips += sr.flips;
+    }
     result.seconds.optimize = seconds_since(t);
   }
   stage("checks");
@@ -357,6 +367,13 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
     const std::vector<ComponentShape> shapes = input_component_shapes(
         mesh, result.budget.component_of_vertex, uint32_t(result.budget.clusters_per_component.size()), boundary_loops);
     result.components = check_component_topology(shapes, dual.mesh.view(), dual.cluster_of_output_vertex, component_of_cluster);
+  }
+  {
+    const StripQuality sq = strip_face_quality(dual.mesh.positions, dual.mesh.triangles, dual.cluster_of_output_vertex);
+    result.strip_faces = sq.strip_faces;
+    result.strip_q_min = sq.strip_q_min;
+    result.strip_q_avg = sq.strip_q_avg;
+    result.other_q_avg = sq.other_q_avg;
   }
   result.duplicate_faces_removed = dual.duplicate_faces_removed;
   result.boundary_vertices_added = dual.boundary_vertices_added;

@@ -92,6 +92,10 @@ struct RemeshResult {
   uint64_t boundary_vertices_added = 0;
   uint64_t holes_closed = 0;
   uint64_t quality_flips = 0, quality_moves = 0;  ///< edits of the quality post-pass
+  uint64_t strip_moves = 0;  ///< strip and strip-adjacent vertex moves of the quality pass (core/strip_shape.h)
+  /// Faces with a corner at a boundary-strip vertex: count, Qmin, Qav (and the others' Qav).
+  uint64_t strip_faces = 0;
+  double strip_q_min = 0, strip_q_avg = 0, other_q_avg = 0;
   bool clusters_connected = false;
   int64_t input_euler_characteristic = 0, output_euler_characteristic = 0;
   /// Closed input whose output lost or gained handles, or had holes opened by the last-resort

@@ -151,10 +151,16 @@ std::vector<float> output_vertex_attributes(std::span<const float> cluster_means
       continue;
     }
     const VertexSource s = dual.source_of_output_vertex[o];
+    auto value = [&](uint32_t i, size_t k) {
+      return double(attributes.values[size_t(dual.source_vertices[s.begin + i]) * attributes.stride + attributes.columns[k]]);
+    };
     for (size_t k = 0; k < A; ++k) {
+      if (s.count == 2) {  // a point of a boundary edge, at t along it
+        out[k] = float((1.0 - s.t) * value(0, k) + s.t * value(1, k));
+        continue;
+      }
       double sum = 0;
-      for (uint32_t i = 0; i < s.count; ++i)
-        sum += attributes.values[size_t(dual.source_vertices[s.begin + i]) * attributes.stride + attributes.columns[k]];
+      for (uint32_t i = 0; i < s.count; ++i) sum += value(i, k);
       out[k] = s.count > 0 ? float(sum / s.count) : 0.0f;
     }
   }

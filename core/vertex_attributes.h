@@ -1,6 +1,7 @@
 // Per-vertex input data (colours, confidence, intensity...) carried to a remesh output: each
 // output vertex of a cluster gets the area-weighted mean of its cluster's vertices, each
-// boundary-strip vertex the mean of the input vertices it lies at (DualMesh::source_of_output_vertex).
+// boundary-strip vertex the value interpolated at the point of the input it lies at (an edge's two
+// ends at its place along the edge, a corner's vertex, a closed hole's loop: DualMesh::source_of_output_vertex).
 // The means are K-sized sums filled range by range from the V-sized labels while they exist, so
 // they work out of core like the other per-cluster passes (core/placement.h).
 #pragma once

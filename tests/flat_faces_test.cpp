@@ -77,9 +77,11 @@ TEST(FlatFaces, NonFlatMeshIsUntouched) {
 }
 
 TEST(FlatFaces, DragonSeedsWithCollinearStripsHaveNoFlatFace) {
-  // At N = 20000 (metric I) seeds 10 and 15 give one flat strip triangle each (dropped), seeds
+  // At N = 20000 (metric I) seeds 10 and 15 gave one flat strip triangle each (dropped), seeds
   // 35 and 45 one (nudged), with the chunk-wise initial sampling (the global one had such
-  // triangles at seeds 5 and 9, and at 3 and 12 under the former cap of 12 repair rounds).
+  // triangles at seeds 5 and 9, and at 3 and 12 under the former cap of 12 repair rounds). Since
+  // the strips are spaced like the clusters and shaped (core/strip_shape.h) the net acts once over
+  // the four seeds (it may act on none): the output must still have no degenerate face.
   const auto path = test::shared_data_path("stanford_dragon_vrip.ply");
   if (!path) GTEST_SKIP() << "../shared/data absent";
   MeshStore store = MeshStore::build(read_mesh(*path).view());
@@ -92,7 +94,7 @@ TEST(FlatFaces, DragonSeedsWithCollinearStripsHaveNoFlatFace) {
     EXPECT_EQ(compute_topology_stats(r.mesh.view()).degenerate_faces, 0u) << "seed " << seed;
     edits += r.flat_faces_removed + r.flat_face_flips;
   }
-  EXPECT_GT(edits, 0u);  // the safety net did act on these seeds
+  std::printf("  flat-face edits of the safety net over the four seeds: %llu\n", (unsigned long long)edits);
 }
 
 }  // namespace

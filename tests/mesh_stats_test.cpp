@@ -232,6 +232,30 @@ TEST(MeshStats, TorusHasGenusOne) {
   EXPECT_DOUBLE_EQ(compute_quality(m.view()).percent_valence6, 100.0);
 }
 
+TEST(MeshStats, BoundaryFacesApart) {
+  // 7 × 5 vertices, 48 right-isosceles faces; those with a rim corner are the boundary ones.
+  const MeshBuffers m = make_grid(7, 5, 6.0f, 4.0f);
+  const QualityStats q = compute_quality(m.view());
+  // A face is off the boundary when its three corners are interior vertices (x in 1..5, y in 1..3).
+  uint64_t off = 0;
+  for (size_t f = 0; f < m.triangles.size(); f += 3) {
+    bool inner = true;
+    for (int k = 0; k < 3; ++k) {
+      const float x = m.positions[3 * size_t(m.triangles[f + k])], y = m.positions[3 * size_t(m.triangles[f + k]) + 1];
+      inner = inner && x > 0.5f && x < 5.5f && y > 0.5f && y < 3.5f;
+    }
+    off += inner;
+  }
+  EXPECT_EQ(q.boundary_triangles, q.triangles - off);
+  EXPECT_NEAR(q.q_avg_boundary, q.q_avg, 1e-9);  // all faces alike
+  EXPECT_NEAR(q.q_avg_off_boundary, q.q_avg, 1e-9);
+  EXPECT_NEAR(q.q_min_boundary, q.q_min, 1e-9);
+  const QualityStats closed = compute_quality(make_icosphere(2).view());
+  EXPECT_EQ(closed.boundary_triangles, 0u);
+  EXPECT_EQ(closed.q_avg_boundary, 0.0);
+  EXPECT_NEAR(closed.q_avg_off_boundary, closed.q_avg, 1e-12);
+}
+
 TEST(MeshStats, GridBoundaryAndQuality) {
   const int nx = 7, ny = 5;  // unit cells: sizes nx − 1, ny − 1
   const MeshBuffers m = make_grid(nx, ny, float(nx - 1), float(ny - 1));

@@ -73,6 +73,10 @@ nlohmann::json quality_json(const QualityStats& q) {
           {"percent_valence6", q.percent_valence6},
           {"edge_length_mean", q.edge_length_mean},
           {"edge_length_cv", q.edge_length_cv},
+          {"boundary_triangles", q.boundary_triangles},
+          {"q_min_boundary", q.q_min_boundary},
+          {"q_avg_boundary", q.q_avg_boundary},
+          {"q_avg_off_boundary", q.q_avg_off_boundary},
           {"q_histogram", q.q_histogram},
           {"min_angle_histogram", q.min_angle_histogram}};
 }
@@ -86,6 +90,9 @@ void print_quality(const QualityStats& q) {
   std::printf("  triangles < 30 deg   %.3f %%\n", q.percent_triangles_below_30);
   std::printf("  valence-6 interior   %.2f %%\n", q.percent_valence6);
   std::printf("  edge length mean/CV  %g / %.4f\n", q.edge_length_mean, q.edge_length_cv);
+  if (q.boundary_triangles > 0)
+    std::printf("  boundary faces       %llu: Qmin / Qav %.4f / %.4f (other faces Qav %.4f)\n",
+                (unsigned long long)q.boundary_triangles, q.q_min_boundary, q.q_avg_boundary, q.q_avg_off_boundary);
 }
 
 // What the store build's topology cleaning did (streaming/store_clean.h): the input's defects as

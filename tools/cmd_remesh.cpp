@@ -375,7 +375,10 @@ void add_remesh_command(CLI::App& app) {
                          {"flat_faces_flipped_or_nudged", rm.flat_face_flips},
                          {"defect_faces_removed", rm.defect_faces_removed},
                          {"defect_vertices_removed", rm.defect_vertices_removed}};
-      j["quality_pass"] = {{"enabled", !args->no_optimize}, {"flips", rm.quality_flips}, {"moves", rm.quality_moves}};
+      j["quality_pass"] = {{"enabled", !args->no_optimize}, {"flips", rm.quality_flips}, {"moves", rm.quality_moves},
+                           {"strip_moves", rm.strip_moves}};
+      j["strips"] = {{"faces", rm.strip_faces}, {"q_min", rm.strip_q_min}, {"q_avg", rm.strip_q_avg},
+                     {"other_q_avg", rm.other_q_avg}};
       j["components"] = {{"count", rm.budget.clusters_per_component.size()},
                          {"small_kept", rm.budget.small_components_kept},
                          {"dropped", rm.budget.components_dropped}};

@@ -8,29 +8,13 @@
 
 #include "core/bvh.h"
 #include "core/errors.h"
+#include "core/vec3.h"
 
 namespace streamcvd {
 
 namespace {
 
-using Vec3 = std::array<double, 3>;
-
-Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-Vec3 add(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
-Vec3 scale(const Vec3& a, double s) { return {a[0] * s, a[1] * s, a[2] * s}; }
-double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-Vec3 cross(const Vec3& a, const Vec3& b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
-Vec3 unit(const Vec3& a) {
-  const double n = norm(a);
-  return n > 0 ? scale(a, 1.0 / n) : Vec3{0, 0, 0};
-}
-
-Vec3 point(std::span<const float> P, uint32_t v) {
-  return {P[3 * size_t(v)], P[3 * size_t(v) + 1], P[3 * size_t(v) + 2]};
-}
+using namespace vec3;  // Vec3, sub, add, scale, dot, cross, norm, unit, point
 
 // Twice the area vector of (a, b, c): its direction is the face normal.
 Vec3 area_vector(const Vec3& a, const Vec3& b, const Vec3& c) { return cross(sub(b, a), sub(c, a)); }

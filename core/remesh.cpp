@@ -268,6 +268,7 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
     result.seconds.repair = r.repair_seconds;
     result.seconds.dual = r.check_seconds;
     result.repair_rounds_used = r.rounds;
+    result.repair_count_rounds = r.count_rounds;
     result.repaired_clusters = r.repaired_clusters;
     result.repair_splits = r.splits;
     result.repair_merges = r.merges;

@@ -76,6 +76,7 @@ struct RemeshResult {
   StageTimes seconds;
   double final_energy = 0;           ///< energy − ΣA_j of the final clustering under its metric
   uint32_t repair_rounds_used = 0;
+  uint32_t repair_count_rounds = 0;  ///< of repair_rounds_used, rounds for the vertex target only
   uint64_t repaired_clusters = 0;    ///< clusters touched by the repair
   uint64_t repair_splits = 0, repair_merges = 0, repair_islands = 0;
   bool repair_relaxed = false;

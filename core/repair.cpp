@@ -697,6 +697,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     result.merges += stats.merges;
     result.islands += stats.dissolved_islands;
     ++result.rounds;
+    if (asked != 0) ++result.count_rounds;
     result.repair_seconds += seconds_since(t);
     t = std::chrono::steady_clock::now();
     bad = tracker.check_changes(labels, editor.take_log());

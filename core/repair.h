@@ -54,6 +54,7 @@ struct DefectRepairOptions {
 
 struct DefectRepairResult {
   uint32_t rounds = 0;                  ///< repair rounds run
+  uint32_t count_rounds = 0;            ///< of them, rounds that only merged or split for the vertex target
   uint64_t repaired_clusters = 0;       ///< Σ over rounds of the clusters each round changed
   uint64_t splits = 0, merges = 0, islands = 0;
   bool relaxed = false;                 ///< a relaxation of the repaired region was kept

@@ -187,7 +187,8 @@ json run_row(const BenchCase& c, const std::string& algorithm, uint32_t target, 
                     {"dual", rm.seconds.dual},         {"algorithm", total - p.load_seconds}, {"total", total}};
     r["loops"] = {{"unconstrained", rm.clustering.unconstrained_loops},
                   {"constrained", rm.clustering.constrained_loops},
-                  {"repair_rounds", rm.repair_rounds_used}};
+                  {"repair_rounds", rm.repair_rounds_used},
+                  {"repair_count_rounds", rm.repair_count_rounds}};
     r["final_energy"] = rm.final_energy;
     r["defect_vertices"] = rm.defect_vertices;
     loop_series(rm.clustering, r);

@@ -365,6 +365,7 @@ void add_remesh_command(CLI::App& app) {
                          {"final_energy", rm.final_energy},
                          {"clustering_energy", cr.final_energy},
                          {"repair_rounds", rm.repair_rounds_used},
+                         {"repair_count_rounds", rm.repair_count_rounds},
                          {"repaired_clusters", rm.repaired_clusters},
                          {"repair_splits", rm.repair_splits},
                          {"repair_merges", rm.repair_merges},

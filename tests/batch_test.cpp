@@ -109,8 +109,9 @@ TEST_F(Batch, SignalsInAnOutOfCoreRemeshLeaveNothingAndTheRerunSucceeds) {
       fs::create_directories(out_);
       continue;
     }
-    if (std::string(c.stage) == "ingest")
+    if (std::string(c.stage) == "ingest") {
       EXPECT_EQ(r.err.find("\rremesh: items"), std::string::npos) << "the signal came after the ingest";
+    }
     EXPECT_TRUE(entries(out_).empty()) << "output, report or temporary left";
     EXPECT_TRUE(entries(work_).empty()) << "work file or temporary store left";
   }

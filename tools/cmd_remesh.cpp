@@ -123,7 +123,6 @@ std::string failed_checks(const nlohmann::json& checks) {
   return out;
 }
 
-// --attributes: all, none, or a comma-separated list of names.
 // Disk bytes read and written per stage (the report's io.stages): the counters are read when a
 // stage's final report arrives, so a stage gets what happened since the previous one ended.
 // Out of core this tells which stage pays for the paging.
@@ -150,6 +149,7 @@ class StageIoLog {
   std::vector<std::pair<std::string, IoCounters>> stages_;  // in the order they ended
 };
 
+// --attributes: all, none, or a comma-separated list of names.
 void parse_attributes(const std::string& text, PipelineOptions& options) {
   if (text == "all") {
     options.attributes = ReadOptions::Attributes::All;

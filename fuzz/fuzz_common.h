@@ -26,6 +26,7 @@
 #include "streaming/mesh_io.h"
 #include "streaming/mesh_reader.h"
 #include "streaming/store.h"
+#include "streaming/store_clean.h"
 
 namespace streamcvd::fuzz {
 
@@ -230,8 +231,15 @@ inline void run_mesh_input(const uint8_t* data, size_t size, const char* extensi
     if (stats.vertices != mesh.vertex_count() || stats.faces != mesh.face_count()) std::abort();
     StoreBuildOptions options;
     options.faces_per_chunk = 4;  // several chunks even for tiny meshes
+    options.clean_topology = false;
     MeshStore store = MeshStore::build(mesh.view(), options);
     if (store.view().vertex_count() != mesh.vertex_count()) std::abort();
+    // The topology cleaning of that store (streaming/store_clean.h): it adds one vertex per
+    // extra fan and drops faces, never vertices.
+    StoreBuildReport report;
+    MeshStore cleaned = clean_store_topology(std::move(store), options, report, {});
+    if (cleaned.view().vertex_count() != mesh.vertex_count() + report.cleaning.vertex_copies) std::abort();
+    if (cleaned.view().face_count() > mesh.face_count()) std::abort();
   });
 }
 

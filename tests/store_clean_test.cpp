@@ -268,22 +268,6 @@ TEST(StoreClean, CleanInputIsTheStoreAsBuilt) {
             0);
 }
 
-void expect_same_store(const MeshStore& a, const MeshStore& b) {
-  ASSERT_EQ(std::memcmp(&a.header(), &b.header(), sizeof(StoreHeader)), 0);
-  const MeshView x = a.view(), y = b.view();
-  auto same = [](auto s, auto t) {
-    return s.size() == t.size() && (s.empty() || std::memcmp(s.data(), t.data(), s.size_bytes()) == 0);
-  };
-  EXPECT_TRUE(same(x.positions, y.positions));
-  EXPECT_TRUE(same(x.triangles, y.triangles));
-  EXPECT_TRUE(same(x.vertex_vertex_offsets, y.vertex_vertex_offsets));
-  EXPECT_TRUE(same(x.vertex_vertex, y.vertex_vertex));
-  EXPECT_TRUE(same(x.vertex_face, y.vertex_face));
-  EXPECT_TRUE(same(x.vertex_flags, y.vertex_flags));
-  EXPECT_TRUE(same(x.chunks, y.chunks));
-  EXPECT_TRUE(same(a.original_vertex_ids(), b.original_vertex_ids()));
-}
-
 TEST(StoreClean, CleanedStoreIndependentOfMemoryAndThreads) {
   // A big defective input: a sphere of 40,962 vertices with every 50th face doubled, then its
   // reflection through a vertex, then that pair's reflection through an edge, in many chunks.
@@ -301,7 +285,7 @@ TEST(StoreClean, CleanedStoreIndependentOfMemoryAndThreads) {
   {
     tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
     StoreBuildReport r1;
-    expect_same_store(reference, build(m, r1, options));
+    test::expect_same_arrays(reference, build(m, r1, options));
   }
   const fs::path root = test::temp_dir("store_clean");
   const fs::path ply = root / "defective.ply";
@@ -313,9 +297,9 @@ TEST(StoreClean, CleanedStoreIndependentOfMemoryAndThreads) {
   MeshStore ingested = MeshStore::ingest(ply.string(), (root / "store").string(), limited, {}, &r2);
   EXPECT_TRUE(r2.cleaning.rebuilt);
   EXPECT_GT(r2.spilled_bytes, 0u);  // the limit did force the external-memory paths
-  expect_same_store(reference, ingested);
+  test::expect_same_arrays(reference, ingested);
   const MeshStore opened = MeshStore::open((root / "store").string());
-  expect_same_store(reference, opened);
+  test::expect_same_arrays(reference, opened);
   // The store keeps the input's figures as read and the cleaning's counts (cleaning.txt).
   StoreBuildReport kept;
   ASSERT_TRUE(opened.cleaning_report(kept));

@@ -178,23 +178,6 @@ uint64_t brute_halo(const MeshView& m, const Chunk& c, int rings) {
   return count;
 }
 
-void expect_same_arrays(const MeshStore& a, const MeshStore& b) {
-  ASSERT_EQ(std::memcmp(&a.header(), &b.header(), sizeof(StoreHeader)), 0);
-  const MeshView x = a.view(), y = b.view();
-  auto same = [](auto s, auto t) {
-    return s.size() == t.size() && (s.empty() || std::memcmp(s.data(), t.data(), s.size_bytes()) == 0);
-  };
-  EXPECT_TRUE(same(x.positions, y.positions));
-  EXPECT_TRUE(same(x.triangles, y.triangles));
-  EXPECT_TRUE(same(x.vertex_vertex_offsets, y.vertex_vertex_offsets));
-  EXPECT_TRUE(same(x.vertex_vertex, y.vertex_vertex));
-  EXPECT_TRUE(same(x.vertex_face_offsets, y.vertex_face_offsets));
-  EXPECT_TRUE(same(x.vertex_face, y.vertex_face));
-  EXPECT_TRUE(same(x.vertex_flags, y.vertex_flags));
-  EXPECT_TRUE(same(x.chunks, y.chunks));
-  EXPECT_TRUE(same(a.original_vertex_ids(), b.original_vertex_ids()));
-}
-
 TEST(Store, ProceduralMeshesAreValid) {
   for (const MeshBuffers& mesh :
        {make_icosphere(3), make_torus(40, 30), make_grid(30, 20), shuffled(make_torus(25, 16), 5)}) {
@@ -350,19 +333,19 @@ TEST(Store, WriteOpenRoundTripIsByteIdentical) {
   for (const auto& e : fs::directory_iterator(dir)) on_disk += e.file_size();
   EXPECT_EQ(on_disk, built.size_bytes());
   MeshStore opened = MeshStore::open(dir.string());
-  expect_same_arrays(built, opened);
+  test::expect_same_arrays(built, opened);
   EXPECT_EQ(opened.size_bytes(), built.size_bytes());
   expect_valid_store(opened, mesh.view());
   MeshStore loaded = load_mesh_or_store(dir.string());
-  expect_same_arrays(built, loaded);
+  test::expect_same_arrays(built, loaded);
   // Moving keeps the mapping alive.
   MeshStore moved = std::move(opened);
-  expect_same_arrays(built, moved);
+  test::expect_same_arrays(built, moved);
   // Writing another mesh over it replaces the store completely.
   MeshBuffers small = make_icosphere(1);
   MeshStore other = MeshStore::build(small.view());
   other.write(dir.string());
-  expect_same_arrays(other, MeshStore::open(dir.string()));
+  test::expect_same_arrays(other, MeshStore::open(dir.string()));
   fs::remove_all(dir.parent_path());
 }
 
@@ -382,7 +365,7 @@ TEST(Store, IngestToDiskEqualsBuildInRamAtAnyMemoryLimit) {
     o.memory_limit = limit;
     StoreBuildReport report;
     MeshStore ingested = MeshStore::ingest(ply.string(), dir.string(), o, {}, &report);
-    expect_same_arrays(built, ingested);
+    test::expect_same_arrays(built, ingested);
     if (limit > 0) {  // the limit did force the external-memory paths
       EXPECT_GT(report.key_buckets, 1u);
       EXPECT_GT(report.vertex_ranges, 1u);
@@ -404,7 +387,7 @@ TEST(Store, IngestToDiskEqualsBuildInRamAtAnyMemoryLimit) {
     StoreBuildOptions o = options;
     o.memory_limit = limit;
     o.work_directory = work.string();
-    expect_same_arrays(built, MeshStore::build_from_file(ply.string(), o));
+    test::expect_same_arrays(built, MeshStore::build_from_file(ply.string(), o));
     EXPECT_TRUE(fs::is_empty(work));
   }
   // An unwritable destination fails with OutputError and leaves no store.
@@ -428,7 +411,7 @@ TEST(Store, LoadMeshOrStoreReadsFiles) {
   EXPECT_FALSE(is_store_directory("/nonexistent/dir"));
   MeshStore store = load_mesh_or_store(path);
   MeshBuffers mesh = read_mesh(path);
-  expect_same_arrays(store, MeshStore::build(mesh.view()));
+  test::expect_same_arrays(store, MeshStore::build(mesh.view()));
 }
 
 TEST(Store, DeterministicAcrossRunsAndThreadCounts) {
@@ -436,16 +419,16 @@ TEST(Store, DeterministicAcrossRunsAndThreadCounts) {
   MeshBuffers mesh = shuffled(make_icosphere(7), 9);
   MeshStore a = MeshStore::build(mesh.view(), {.faces_per_chunk = 1000});
   MeshStore b = MeshStore::build(mesh.view(), {.faces_per_chunk = 1000});
-  expect_same_arrays(a, b);
+  test::expect_same_arrays(a, b);
   {
     tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
     MeshStore serial = MeshStore::build(mesh.view(), {.faces_per_chunk = 1000});
-    expect_same_arrays(a, serial);
+    test::expect_same_arrays(a, serial);
   }
   {
     tbb::global_control many(tbb::global_control::max_allowed_parallelism, 8);
     MeshStore parallel = MeshStore::build(mesh.view(), {.faces_per_chunk = 1000});
-    expect_same_arrays(a, parallel);
+    test::expect_same_arrays(a, parallel);
   }
 }
 
@@ -457,7 +440,7 @@ TEST(Store, EmptyFacesAndBadSoups) {
   for (uint8_t f : store.view().vertex_flags) EXPECT_EQ(f, kVertexIsolated);
   const fs::path dir = test::temp_dir("store_points");
   store.write(dir.string());
-  expect_same_arrays(store, MeshStore::open(dir.string()));
+  test::expect_same_arrays(store, MeshStore::open(dir.string()));
   fs::remove_all(dir);
 
   MeshBuffers bad = make_icosphere(1);

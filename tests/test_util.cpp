@@ -1,5 +1,8 @@
 #include "tests/test_util.h"
 
+#include <gtest/gtest.h>
+#include <cstring>
+
 #include <array>
 #include <atomic>
 #include <cmath>
@@ -43,6 +46,23 @@ std::vector<uint32_t> pieces_per_cluster(const MeshView& mesh, std::span<const i
     }
   }
   return pieces;
+}
+
+void expect_same_arrays(const MeshStore& a, const MeshStore& b) {
+  ASSERT_EQ(std::memcmp(&a.header(), &b.header(), sizeof(StoreHeader)), 0);
+  const MeshView x = a.view(), y = b.view();
+  auto same = [](auto s, auto t) {
+    return s.size() == t.size() && (s.empty() || std::memcmp(s.data(), t.data(), s.size_bytes()) == 0);
+  };
+  EXPECT_TRUE(same(x.positions, y.positions));
+  EXPECT_TRUE(same(x.triangles, y.triangles));
+  EXPECT_TRUE(same(x.vertex_vertex_offsets, y.vertex_vertex_offsets));
+  EXPECT_TRUE(same(x.vertex_vertex, y.vertex_vertex));
+  EXPECT_TRUE(same(x.vertex_face_offsets, y.vertex_face_offsets));
+  EXPECT_TRUE(same(x.vertex_face, y.vertex_face));
+  EXPECT_TRUE(same(x.vertex_flags, y.vertex_flags));
+  EXPECT_TRUE(same(x.chunks, y.chunks));
+  EXPECT_TRUE(same(a.original_vertex_ids(), b.original_vertex_ids()));
 }
 
 }  // namespace streamcvd::test

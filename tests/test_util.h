@@ -30,6 +30,10 @@ std::vector<uint32_t> pieces_per_cluster(const MeshView& mesh, std::span<const i
 /// A fresh empty directory under the system temp dir, unique per call.
 std::filesystem::path temp_dir(const std::string& tag);
 
+/// Expects two stores to hold the same header and the same bytes in every array (positions,
+/// triangles, both CSRs, flags, chunks, original ids): the byte-identity tests' comparison.
+void expect_same_arrays(const MeshStore& a, const MeshStore& b);
+
 /// A store built in RAM from a soup, and its view (the view points into the store).
 struct StoredMesh {
   MeshStore store;

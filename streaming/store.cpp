@@ -364,11 +364,19 @@ MeshStore clean_store_topology(MeshStore&& built, const StoreBuildOptions& optio
                                const std::function<void(const BuildProgress&)>& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
-  // Pass 1: the figures as read (what `info` prints). A clean store ends here, as built.
-  if (progress) progress({"check"});
+  // The build's screen found nothing: the store is clean as built (the usual scan), and the
+  // input's figures are left to whoever prints them.
   report.topology_checked = true;
-  report.input_topology = compute_topology_stats(built.view());
   report.cleaning = {};
+  if (!report.screen.any()) {
+    report.input_topology_known = false;
+    return std::move(built);
+  }
+  // Pass 1: the figures as read (what `info` prints). A store the screen flagged for zero-area
+  // faces only, or for nothing the cleaning acts on, ends here, as built.
+  if (progress) progress({"check"});
+  report.input_topology = compute_topology_stats(built.view());
+  report.input_topology_known = true;
   report.cleaning.cleaned = report.input_topology;
   if (!needs_topology_cleaning(report.input_topology, built.view())) {
     report.cleaning.seconds = seconds();

@@ -70,7 +70,8 @@ struct TopologyCleaning {
   uint64_t unpaired_faces_dropped = 0;    ///< later rounds: unpaired faces of cuts that did not come apart
   uint32_t rounds = 0;                    ///< rebuilds (a second or third only when a cut did not come apart)
   double seconds = 0;                     ///< checks, plan, rebuild
-  /// The figures of the store as cleaned (those of the input when nothing was rebuilt).
+  /// The figures of the store as cleaned (those of the input when nothing was rebuilt; unset
+  /// when the build's screen found nothing: StoreBuildReport::input_topology_known).
   TopologyStats cleaned;
   /// Pieces the cut made: components of the cleaned store beyond those of the input.
   int64_t sheets_made(const TopologyStats& input) const { return int64_t(cleaned.components) - int64_t(input.components); }
@@ -91,9 +92,19 @@ struct StoreBuildReport {
   uint64_t memory_limit = 0;                    ///< the limit planned with (0 = unlimited)
   uint64_t spilled_bytes = 0;                   ///< bytes written to scratch files
   double read_seconds = 0, order_seconds = 0, faces_seconds = 0, adjacency_seconds = 0;
-  /// clean_topology: the input's figures as read (compute_topology_stats of the first build,
-  /// what `info` prints) and what the cleaning did. Unset (topology_checked false) otherwise.
+  /// What the topology cleaning acts on, counted exactly while the ranges are built (pass 4):
+  /// vertices flagged non-manifold (every non-manifold edge flags its ends), faces with a
+  /// repeated index, and duplicate faces (same vertex set; a duplicate has its twin's owner).
+  /// All zero: the store needs no cleaning, and its full figures are not computed.
+  struct TopologyScreen {
+    uint64_t nonmanifold_vertices = 0, repeated_index_faces = 0, duplicate_faces = 0;
+    bool any() const { return nonmanifold_vertices + repeated_index_faces + duplicate_faces > 0; }
+  } screen;
+  /// clean_topology ran: the screen's verdict, and what the cleaning did. Unset otherwise.
   bool topology_checked = false;
+  /// The input's figures as read (compute_topology_stats of the first build, what `info`
+  /// prints): computed only when the screen found something to clean.
+  bool input_topology_known = false;
   TopologyStats input_topology;
   TopologyCleaning cleaning;
 };

@@ -15,9 +15,11 @@
 #include <cstdlib>
 #include <future>
 #include <limits>
+#include <vector>
 
 #include "core/adjacency.h"
 #include "core/errors.h"
+#include "core/mesh_view.h"
 #include "streaming/counting_sort.h"
 #include "streaming/store_build_state.h"
 #include "streaming/store_writer.h"
@@ -110,6 +112,7 @@ class RangePass {
   void cut_chunks(uint32_t r);
   void send_foreign(uint32_t r);
   void local_adjacency(uint32_t r);
+  void screen_topology();
   struct RangeArrays;
   void write_range();
   void write(RangeArrays& a);
@@ -250,6 +253,64 @@ void RangePass::local_adjacency(uint32_t) {
   });
 }
 
+// The cleaning's screen over the range (StoreBuildReport::TopologyScreen): its flagged vertices,
+// and among each owner's faces those with a repeated index and the duplicates (a face's vertex
+// set fixes its owner, the smallest, so twins share an owner run). One parallel pass over the
+// owned faces while they are in RAM: no pass over the built store to decide on the cleaning.
+void RangePass::screen_topology() {
+  using Screen = StoreBuildReport::TopologyScreen;
+  const uint32_t* owned = a_->tri.data() + 3 * foreign_count_;
+  tbb::enumerable_thread_specific<std::vector<uint64_t>> many;  // owners of more than kFew faces
+  constexpr size_t kFew = 16;
+  const Screen found = tbb::parallel_reduce(
+      tbb::blocked_range<uint32_t>(0, n_, 4096), Screen{},
+      [&](const tbb::blocked_range<uint32_t>& q, Screen sc) {
+        for (uint32_t v = q.begin(); v != q.end(); ++v) {
+          sc.nonmanifold_vertices += (a_->flags[v] & kVertexNonManifold) != 0;
+          const uint64_t begin = owned_start_[v], end = owned_start_[v + 1];
+          // The owner is the smallest corner: the other two, ordered, name the vertex set. A
+          // face is a duplicate when an earlier face of its owner has its key (so a triple
+          // counts two, as compute_topology_stats counts them).
+          uint64_t few[kFew];
+          size_t keys = 0;
+          std::vector<uint64_t>* more = end - begin > kFew ? &many.local() : nullptr;
+          if (more) more->clear();
+          for (uint64_t i = begin; i != end; ++i) {
+            const uint32_t* t = owned + 3 * i;
+            if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
+              ++sc.repeated_index_faces;
+              continue;
+            }
+            const uint32_t mid = std::max(std::min(t[0], t[1]), std::min(std::max(t[0], t[1]), t[2]));
+            const uint64_t key = uint64_t(mid) << 32 | std::max({t[0], t[1], t[2]});
+            if (more) {
+              more->push_back(key);
+              continue;
+            }
+            bool seen = false;
+            for (size_t j = 0; j < keys; ++j) seen |= few[j] == key;
+            sc.duplicate_faces += seen;
+            if (!seen) few[keys++] = key;
+          }
+          if (more) {
+            std::sort(more->begin(), more->end());
+            sc.duplicate_faces += uint64_t(more->size() - (std::unique(more->begin(), more->end()) - more->begin()));
+          }
+        }
+        return sc;
+      },
+      [](Screen a, const Screen& b) {
+        a.nonmanifold_vertices += b.nonmanifold_vertices;
+        a.repeated_index_faces += b.repeated_index_faces;
+        a.duplicate_faces += b.duplicate_faces;
+        return a;
+      });
+  Screen& total = s_.result.report.screen;
+  total.nonmanifold_vertices += found.nonmanifold_vertices;
+  total.repeated_index_faces += found.repeated_index_faces;
+  total.duplicate_faces += found.duplicate_faces;
+}
+
 // Appends one range's arrays to the outputs (on the writer thread), offsets made global.
 void RangePass::write(RangeArrays& a) {
   const uint64_t owned = a.tri.size() / 3 - a.foreign;
@@ -342,9 +403,11 @@ void RangePass::chunk_stats(uint32_t, const RangeInput&) {
     tbb::enumerable_thread_specific<Part> parts;
     tbb::parallel_for(tbb::blocked_range<uint32_t>(s0, s1, 4096), [&](const tbb::blocked_range<uint32_t>& q) {
       Part& p = parts.local();
+      // A vertex's face ids ascend (foreign faces first, in id order, then the owned ones), so
+      // its halo faces are a prefix of its list.
       for (uint32_t v = q.begin(); v != q.end(); ++v)
-        for (uint64_t j = a_->vf_off[v - vb_]; j != a_->vf_off[v - vb_ + 1]; ++j)
-          if (a_->vf[j] < chunk_face_begin) p.halo.push_back(a_->vf[j]);
+        for (uint64_t j = a_->vf_off[v - vb_], end = a_->vf_off[v - vb_ + 1]; j != end && a_->vf[j] < chunk_face_begin; ++j)
+          p.halo.push_back(a_->vf[j]);
     });
     add_box(s0, s1, open_.lo, open_.hi);
     for (Part& p : parts) open_.halo.insert(open_.halo.end(), p.halo.begin(), p.halo.end());
@@ -403,6 +466,7 @@ void RangePass::run() {
     send_foreign(r);
     tick(3);
     local_adjacency(r);
+    screen_topology();
     tick(4);
     chunk_stats(r, in);
     tick(6);

@@ -534,6 +534,7 @@ void parse_cleaning_record(const std::string& text, StoreBuildReport& r) {
     if (!ok || words.fail()) throw InputError("line " + std::to_string(n) + ": cannot read '" + line + "'");
   }
   r.topology_checked = true;
+  r.input_topology_known = true;
   r.cleaning.rebuilt = true;
 }
 

@@ -152,6 +152,7 @@ TEST(StoreClean, DuplicatedFacesAreDropped) {
   MeshStore store = build(m, r);
   ASSERT_TRUE(r.topology_checked);
   EXPECT_EQ(r.input_topology.duplicate_faces, duplicates);  // the input as read, as `info` counts it
+  EXPECT_EQ(r.screen.duplicate_faces, duplicates);          // the build's screen counts the same
   EXPECT_TRUE(r.cleaning.rebuilt);
   EXPECT_EQ(r.cleaning.duplicate_faces_dropped, duplicates);
   EXPECT_EQ(r.cleaning.vertex_copies, 0u);
@@ -169,6 +170,7 @@ TEST(StoreClean, FinBecomesAPieceOfItsOwn) {
   StoreBuildReport r;
   MeshStore store = build(m, r);
   EXPECT_EQ(r.input_topology.nonmanifold_edges, 1u);
+  EXPECT_EQ(r.screen.nonmanifold_vertices, r.input_topology.nonmanifold_vertices);
   EXPECT_EQ(r.cleaning.nonmanifold_edges_cut, 1u);
   EXPECT_EQ(r.cleaning.unpaired_edge_faces, 1u);
   EXPECT_EQ(r.cleaning.vertex_copies, 2u);  // the hinge's two ends, once each
@@ -204,6 +206,7 @@ TEST(StoreClean, ClosedSurfacesSharingAVertexComeApartClosed) {
   MeshStore store = build(m, r);
   EXPECT_EQ(r.input_topology.nonmanifold_edges, 0u);
   EXPECT_EQ(r.input_topology.nonmanifold_vertices, 1u);
+  EXPECT_EQ(r.screen.nonmanifold_vertices, 1u);
   EXPECT_EQ(r.cleaning.vertices_split, 1u);
   EXPECT_EQ(r.cleaning.vertex_copies, 1u);
   const TopologyStats s = r.cleaning.cleaned;
@@ -231,6 +234,23 @@ TEST(StoreClean, BookOfThreeSheetsPairsTwo) {
   expect_original_positions(store, m);
 }
 
+// A lone face and its reverse (a "pillow") flag no edge and no fan: only the build's duplicate
+// count sees them, and the cleaning must still run.
+TEST(StoreClean, TheScreenFindsATwinThatNoFlagShows) {
+  MeshBuffers m = sphere();
+  const uint32_t base = m.vertex_count();
+  m.positions.insert(m.positions.end(), {3, 0, 0, 4, 0, 0, 3, 1, 0});
+  m.triangles.insert(m.triangles.end(), {base, base + 1, base + 2, base, base + 2, base + 1});
+  StoreBuildReport r;
+  build(m, r);
+  EXPECT_EQ(r.screen.nonmanifold_vertices, 0u);
+  EXPECT_EQ(r.screen.duplicate_faces, 1u);
+  EXPECT_TRUE(r.input_topology_known);
+  EXPECT_EQ(r.input_topology.duplicate_faces, 1u);
+  EXPECT_TRUE(r.cleaning.rebuilt);
+  EXPECT_EQ(r.cleaning.duplicate_faces_dropped, 1u);
+}
+
 TEST(StoreClean, RepeatedIndexFacesGoZeroAreaFacesOfAManifoldStay) {
   MeshBuffers m = sphere();
   const uint32_t a = m.triangles[0], b = m.triangles[1], c = m.triangles[2];
@@ -244,8 +264,10 @@ TEST(StoreClean, RepeatedIndexFacesGoZeroAreaFacesOfAManifoldStay) {
   MeshBuffers flat = sphere();
   for (int k = 0; k < 3; ++k) flat.positions[3 * c + k] = flat.positions[3 * a + k];
   StoreBuildReport f;
-  build(flat, f);
-  EXPECT_GE(f.input_topology.degenerate_faces, 1u);
+  const MeshStore kept = build(flat, f);
+  EXPECT_FALSE(f.screen.any());  // nothing the cleaning acts on: the full figures are not computed
+  EXPECT_FALSE(f.input_topology_known);
+  EXPECT_GE(compute_topology_stats(kept.view()).degenerate_faces, 1u);
   EXPECT_FALSE(f.cleaning.rebuilt);
 }
 

@@ -98,6 +98,13 @@ void print_quality(const QualityStats& q) {
 // What the store build's topology cleaning did (streaming/store_clean.h): the input's defects as
 // read, what was dropped and cut, the figures of the cleaned mesh.
 nlohmann::json cleaning_json(const StoreBuildReport& b) {
+  if (!b.input_topology_known) {  // the build's screen found nothing to clean
+    const StoreBuildReport::TopologyScreen& s = b.screen;
+    return {{"rebuilt", false},
+            {"input_nonmanifold_vertices", s.nonmanifold_vertices},
+            {"input_duplicate_faces", s.duplicate_faces},
+            {"input_repeated_index_faces", s.repeated_index_faces}};
+  }
   const TopologyCleaning& c = b.cleaning;
   const TopologyStats& in = b.input_topology;
   const TopologyStats& out = c.cleaned;
@@ -167,7 +174,7 @@ void add_info_command(CLI::App& app) {
       // A cleaned store keeps the input's figures as read; any other is its input as read.
       build.cleaning.cleaned = compute_topology_stats(store.view());
       if (!store.cleaning_report(build)) {
-        build.topology_checked = true;
+        build.topology_checked = build.input_topology_known = true;
         build.input_topology = build.cleaning.cleaned;
       }
     } else {
@@ -175,8 +182,12 @@ void add_info_command(CLI::App& app) {
       // cleaned one); the cleaning's are added.
       ProgressLine progress("info", *job);
       store = MeshStore::build_from_file(*path, options, {}, &build, [&](const BuildProgress& p) { progress.update(p); });
+      if (!build.input_topology_known) {  // the build found nothing to clean: the store is the input as read
+        build.input_topology = build.cleaning.cleaned = compute_topology_stats(store.view());
+        build.input_topology_known = true;
+      }
     }
-    const TopologyStats stats = build.topology_checked ? build.input_topology : compute_topology_stats(store.view());
+    const TopologyStats& stats = build.input_topology;
     if (*json) {
       nlohmann::json j = topology_json(stats);
       j["file"] = *path;

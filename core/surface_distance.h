@@ -56,6 +56,10 @@ double bounding_box_diagonal(const TriangleSoupView& mesh);
 
 /// Two-sided result of surface_distance(). Absolute figures are in mesh units; divide by
 /// `diagonal` (or use relative()) for the figures Metro reports as a fraction of the bbox.
+/// Cap on the samples per side callers accept (the CLI's --samples, the Python binding): 100M
+/// samples already take ~2.8 GB (points + query order).
+inline constexpr uint64_t kMaxDistanceSamples = 100'000'000;
+
 struct DistanceReport {
   OneSidedDistance a_to_b;  ///< samples of A against the surface of B
   OneSidedDistance b_to_a;  ///< samples of B against the surface of A

@@ -158,6 +158,49 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   return result;
 }
 
+namespace {
+
+// The common end of remesh_path and remesh_stream: remeshes `store`, built from (or opened as)
+// `input`, and fills in what the load did.
+PipelineResult remesh_loaded(const MeshStore& store, const std::string& input, const PipelineOptions& o,
+                             const StoreBuildReport& build_report, double load_seconds, double store_seconds,
+                             bool from_store, const std::string& kept) {
+  PipelineResult result;
+  try {
+    result = remesh_store(store, o);
+  } catch (const InputError& e) {
+    throw InputError(error_at(input, e.what()));  // name the file, as every CLI error does
+  }
+  result.input_build = build_report;
+  result.load_seconds = load_seconds;
+  result.store_seconds += store_seconds;
+  result.store_in_ram = store.ram_bytes() > 0 || store.view().vertex_count() == 0;
+  result.kept_store = kept;
+  // A file input's store mapped from anonymous work files (a kept store is a result, not scratch).
+  if (!from_store && kept.empty() && store.ram_bytes() == 0) result.temporary_store_bytes += store.size_bytes();
+  return result;
+}
+
+StoreBuildOptions temporary_store_options(const PipelineOptions& o) {
+  StoreBuildOptions build;
+  build.memory_limit = o.memory_limit;
+  build.work_directory = o.work_directory.empty() ? default_work_directory() : o.work_directory;
+  return build;
+}
+
+}  // namespace
+
+PipelineResult remesh_stream(const std::function<void(MeshSink&)>& produce, const std::string& name,
+                             const PipelineOptions& options) {
+  const auto t = std::chrono::steady_clock::now();
+  report(options, {"ingest"});
+  StoreBuildReport build_report;
+  MeshStore store = MeshStore::build_from_stream(produce, temporary_store_options(options), &build_report, options.progress);
+  const double store_seconds = seconds_since(t);
+  report(options, {.stage = "ingest", .done = store.view().face_count(), .unit = "faces", .finished = true});
+  return remesh_loaded(store, name, options, build_report, 0, store_seconds, false, "");
+}
+
 PipelineResult remesh_path(const std::string& input, const PipelineOptions& options) {
   auto t = std::chrono::steady_clock::now();
   MeshStore store;
@@ -176,9 +219,7 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
     load_seconds = seconds_since(t);
   } else {
     report(o, {"ingest"});
-    StoreBuildOptions build;
-    build.memory_limit = o.memory_limit;
-    build.work_directory = o.work_directory.empty() ? default_work_directory() : o.work_directory;
+    StoreBuildOptions build = temporary_store_options(o);
     // Attributes not carried need not be stored (a kept store keeps them all, for reruns); named
     // ones are all read, so that a missing name can be reported with the ones the file has.
     ReadOptions read;
@@ -194,20 +235,7 @@ PipelineResult remesh_path(const std::string& input, const PipelineOptions& opti
     store_seconds = seconds_since(t);
     report(o, {.stage = "ingest", .done = store.view().face_count(), .unit = "faces", .finished = true});
   }
-  PipelineResult result;
-  try {
-    result = remesh_store(store, o);
-  } catch (const InputError& e) {
-    throw InputError(error_at(input, e.what()));  // name the file, as every CLI error does
-  }
-  result.input_build = build_report;
-  result.load_seconds = load_seconds;
-  result.store_seconds += store_seconds;
-  result.store_in_ram = store.ram_bytes() > 0 || store.view().vertex_count() == 0;
-  result.kept_store = kept;
-  // A file input's store mapped from anonymous work files (a kept store is a result, not scratch).
-  if (!from_store && kept.empty() && store.ram_bytes() == 0) result.temporary_store_bytes += store.size_bytes();
-  return result;
+  return remesh_loaded(store, input, o, build_report, load_seconds, store_seconds, from_store, kept);
 }
 
 }  // namespace streamcvd

@@ -86,4 +86,10 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
 /// `input`, OutputError when a work file cannot be written (disk full).
 PipelineResult remesh_path(const std::string& input, const PipelineOptions& options);
 
+/// Same for a mesh that `produce` streams into the sink it is given (arrays in RAM, a reader...):
+/// its temporary store is built and cleaned as a file input's. `name` stands for the input in
+/// errors. Throws InputError (bad indices, no triangle left...), OutputError (work files).
+PipelineResult remesh_stream(const std::function<void(MeshSink&)>& produce, const std::string& name,
+                             const PipelineOptions& options);
+
 }  // namespace streamcvd

@@ -39,11 +39,11 @@
 #include "streaming/remesh_pipeline.h"
 #include "tools/bench.h"
 #include "tools/commands.h"
+#include "streaming/run_reports.h"
 #include "tools/measure.h"
 
 namespace streamcvd::cli {
 
-nlohmann::json quality_json(const QualityStats& q);  // cmd_inspect.cpp
 
 namespace {
 

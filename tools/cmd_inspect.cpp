@@ -13,30 +13,11 @@
 #include "streaming/memory_budget.h"
 #include "tools/commands.h"
 #include "tools/job_options.h"
+#include "streaming/run_reports.h"
 #include "tools/measure.h"
 
 namespace streamcvd::cli {
 namespace {
-
-nlohmann::json topology_json(const TopologyStats& s) {
-  return {{"vertices", s.vertices},
-          {"faces", s.faces},
-          {"edges", s.edges},
-          {"bbox_min", {s.bbox_min[0], s.bbox_min[1], s.bbox_min[2]}},
-          {"bbox_max", {s.bbox_max[0], s.bbox_max[1], s.bbox_max[2]}},
-          {"boundary_edges", s.boundary_edges},
-          {"boundary_loops", s.boundary_loops},
-          {"nonmanifold_edges", s.nonmanifold_edges},
-          {"nonmanifold_vertices", s.nonmanifold_vertices},
-          {"duplicate_faces", s.duplicate_faces},
-          {"degenerate_faces", s.degenerate_faces},
-          {"isolated_vertices", s.isolated_vertices},
-          {"components", s.components},
-          {"euler_characteristic", s.euler_characteristic},
-          {"closed_manifold", s.closed_manifold},
-          {"consistently_oriented", s.consistently_oriented},
-          {"genus", s.genus}};
-}
 
 void print_topology(const std::string& path, const TopologyStats& s) {
   std::printf("%s\n", path.c_str());
@@ -61,26 +42,6 @@ void print_topology(const std::string& path, const TopologyStats& s) {
 
 }  // namespace
 
-nlohmann::json quality_json(const QualityStats& q) {
-  return {{"triangles", q.triangles},
-          {"q_min", q.q_min},
-          {"q_avg", q.q_avg},
-          {"min_angle_min_deg", q.min_angle_min},
-          {"min_angle_avg_deg", q.min_angle_avg},
-          {"max_angle_max_deg", q.max_angle_max},
-          {"percent_angles_below_30", q.percent_angles_below_30},
-          {"percent_triangles_below_30", q.percent_triangles_below_30},
-          {"percent_valence6", q.percent_valence6},
-          {"edge_length_mean", q.edge_length_mean},
-          {"edge_length_cv", q.edge_length_cv},
-          {"boundary_triangles", q.boundary_triangles},
-          {"q_min_boundary", q.q_min_boundary},
-          {"q_avg_boundary", q.q_avg_boundary},
-          {"q_avg_off_boundary", q.q_avg_off_boundary},
-          {"q_histogram", q.q_histogram},
-          {"min_angle_histogram", q.min_angle_histogram}};
-}
-
 void print_quality(const QualityStats& q) {
   std::printf("  triangles            %llu\n", (unsigned long long)q.triangles);
   std::printf("  Qmin / Qav           %.4f / %.4f\n", q.q_min, q.q_avg);
@@ -93,44 +54,6 @@ void print_quality(const QualityStats& q) {
   if (q.boundary_triangles > 0)
     std::printf("  boundary faces       %llu: Qmin / Qav %.4f / %.4f (other faces Qav %.4f)\n",
                 (unsigned long long)q.boundary_triangles, q.q_min_boundary, q.q_avg_boundary, q.q_avg_off_boundary);
-}
-
-// What the store build's topology cleaning did (streaming/store_clean.h): the input's defects as
-// read, what was dropped and cut, the figures of the cleaned mesh.
-nlohmann::json cleaning_json(const StoreBuildReport& b) {
-  if (!b.input_topology_known) {  // the build's screen found nothing to clean
-    const StoreBuildReport::TopologyScreen& s = b.screen;
-    return {{"rebuilt", false},
-            {"input_nonmanifold_vertices", s.nonmanifold_vertices},
-            {"input_duplicate_faces", s.duplicate_faces},
-            {"input_repeated_index_faces", s.repeated_index_faces}};
-  }
-  const TopologyCleaning& c = b.cleaning;
-  const TopologyStats& in = b.input_topology;
-  const TopologyStats& out = c.cleaned;
-  return {{"rebuilt", c.rebuilt},
-          {"input_nonmanifold_edges", in.nonmanifold_edges},
-          {"input_nonmanifold_vertices", in.nonmanifold_vertices},
-          {"input_duplicate_faces", in.duplicate_faces},
-          {"input_degenerate_faces", in.degenerate_faces},
-          {"input_boundary_loops", in.boundary_loops},
-          {"input_components", in.components},
-          {"duplicate_faces_dropped", c.duplicate_faces_dropped},
-          {"degenerate_faces_dropped", c.degenerate_faces_dropped},
-          {"nonmanifold_edges_cut", c.nonmanifold_edges_cut},
-          {"unpaired_edge_faces", c.unpaired_edge_faces},
-          {"vertices_split", c.vertices_split},
-          {"vertex_copies", c.vertex_copies},
-          {"unpaired_faces_dropped", c.unpaired_faces_dropped},
-          {"rounds", c.rounds},
-          {"sheets_made", c.sheets_made(in)},
-          {"cleaned_vertices", out.vertices},
-          {"cleaned_faces", out.faces},
-          {"cleaned_boundary_loops", out.boundary_loops},
-          {"cleaned_components", out.components},
-          {"cleaned_nonmanifold_edges", out.nonmanifold_edges},
-          {"cleaned_nonmanifold_vertices", out.nonmanifold_vertices},
-          {"cleaned_closed_manifold", out.closed_manifold}};
 }
 
 void print_cleaning(std::FILE* out, const StoreBuildReport& b, const char* indent) {
@@ -160,41 +83,17 @@ void add_info_command(CLI::App& app) {
   auto job = std::make_shared<JobOptions>();
   add_job_options(cmd, *job);
   cmd->callback([=] {
-    // Read chunk by chunk through the store's adjacency, in bounded memory: a mesh file is first
-    // streamed into a temporary store (in RAM if it fits --memory, else in anonymous work files).
     auto threads = thread_limit(*job);
     StoreBuildOptions options;
     options.memory_limit = memory_limit(*job);
     options.work_directory = job->work_dir;
-    MeshStore store;
-    StoreBuildReport build;
-    if (is_store_directory(*path)) {
-      store = MeshStore::open(*path);
-      store.validate_all();
-      // A cleaned store keeps the input's figures as read; any other is its input as read.
-      build.cleaning.cleaned = compute_topology_stats(store.view());
-      if (!store.cleaning_report(build)) {
-        build.topology_checked = build.input_topology_known = true;
-        build.input_topology = build.cleaning.cleaned;
-      }
-    } else {
-      // The figures of the input as read come from the build's check (the store may be the
-      // cleaned one); the cleaning's are added.
-      ProgressLine progress("info", *job);
-      store = MeshStore::build_from_file(*path, options, {}, &build, [&](const BuildProgress& p) { progress.update(p); });
-      if (!build.input_topology_known) {  // the build found nothing to clean: the store is the input as read
-        build.input_topology = build.cleaning.cleaned = compute_topology_stats(store.view());
-        build.input_topology_known = true;
-      }
-    }
-    const TopologyStats& stats = build.input_topology;
+    ProgressLine progress("info", *job);
+    const StoreBuildReport build = inspect_mesh(*path, options, [&](const StageProgress& p) { progress.update(p); });
+    progress.finish();
     if (*json) {
-      nlohmann::json j = topology_json(stats);
-      j["file"] = *path;
-      if (build.topology_checked) j["cleaning"] = cleaning_json(build);
-      print_json(j);
+      print_json(info_json(*path, build));
     } else {
-      print_topology(*path, stats);
+      print_topology(*path, build.input_topology);
       if (build.topology_checked) print_cleaning(stdout, build, "  ");
     }
   });
@@ -271,30 +170,10 @@ void add_ingest_command(CLI::App& app) {
                                         [&](const BuildProgress& p) { progress.update(p); });
     progress.finish();
     const double total = now_seconds() - t0;
-    const MemoryPeak peak = measure_peak_memory();
+    const nlohmann::json j = ingest_report(*in, *dir, store, report, total);
+    const MemoryPeak peak{j["peak_bytes"].get<uint64_t>(), j["peak_source"] == "cgroup" ? PeakSource::Cgroup : PeakSource::Rss};
     const uint64_t in_bytes = report.input_bytes;
     const StoreHeader& h = store.header();
-    nlohmann::json j = {{"input", *in},
-                        {"store", *dir},
-                        {"input_bytes", in_bytes},
-                        {"vertices", h.vertex_count},
-                        {"faces", h.face_count},
-                        {"chunks", h.chunk_count},
-                        {"store_bytes", store.size_bytes()},
-                        {"read_seconds", report.read_seconds},
-                        {"order_seconds", report.order_seconds},
-                        {"faces_seconds", report.faces_seconds},
-                        {"adjacency_seconds", report.adjacency_seconds},
-                        {"total_seconds", total},
-                        {"ingest_mb_per_s", double(in_bytes) / 1e6 / std::max(1e-9, total)},
-                        {"memory_limit_bytes", report.memory_limit},
-                        {"peak_bytes", peak.bytes},
-                        {"peak_source", peak.source == PeakSource::Cgroup ? "cgroup" : "rss"},
-                        {"spilled_bytes", report.spilled_bytes},
-                        {"key_buckets", report.key_buckets},
-                        {"vertex_ranges", report.vertex_ranges},
-                        {"polygons_split", report.polygons_split}};
-    if (report.topology_checked) j["cleaning"] = cleaning_json(report);
     if (*json) {
       print_json(j);
       return;

@@ -12,6 +12,7 @@
 #include "streaming/png_writer.h"
 #include "tools/commands.h"
 #include "tools/job_options.h"
+#include "streaming/run_reports.h"
 #include "tools/measure.h"
 
 namespace streamcvd::cli {
@@ -34,16 +35,6 @@ bool parse_u32(const std::string& s, uint32_t& out) {
   if (s.empty() || s.size() > 9 || s.find_first_not_of("0123456789") != std::string::npos) return false;
   out = uint32_t(std::stoul(s));
   return true;
-}
-
-nlohmann::json one_side_json(const OneSidedDistance& s, const DistanceReport& d) {
-  return {{"max", s.max},
-          {"mean", s.mean},
-          {"rms", s.rms},
-          {"samples", s.samples},
-          {"max_relative", d.relative(s.max)},
-          {"mean_relative", d.relative(s.mean)},
-          {"rms_relative", d.relative(s.rms)}};
 }
 
 void print_side(const char* label, const OneSidedDistance& s, const DistanceReport& d) {
@@ -83,14 +74,6 @@ DistanceReport measure_distance(const std::string& a_name, const TriangleSoupVie
     if (what.rfind(kCorePrefix, 0) != 0) what = std::string(kCorePrefix) + what;
     throw InputError(error_at(who, what));
   }
-}
-
-nlohmann::json distance_json(const DistanceReport& d) {
-  return {{"a_to_b", one_side_json(d.a_to_b, d)},
-          {"b_to_a", one_side_json(d.b_to_a, d)},
-          {"hausdorff", d.hausdorff},
-          {"hausdorff_relative", d.relative_hausdorff()},
-          {"diagonal", d.diagonal}};
 }
 
 void parse_view(const std::string& text, RenderOptions& options) {
@@ -145,8 +128,6 @@ void add_distance_command(CLI::App& app) {
       nlohmann::json j = distance_json(d);
       j["a"] = args->a;
       j["b"] = args->b;
-      j["two_sided_rms"] = d.two_sided_rms();
-      j["two_sided_rms_relative"] = d.relative(d.two_sided_rms());
       j["a_faces"] = a.view().face_count();
       j["b_faces"] = b.view().face_count();
       j["samples_per_side"] = args->samples;

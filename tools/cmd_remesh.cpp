@@ -12,15 +12,14 @@
 #include "streaming/output_file.h"
 #include "core/parallel_clustering.h"
 #include "streaming/remesh_pipeline.h"
+#include "streaming/run_reports.h"
 #include "streaming/memory_budget.h"
 #include "tools/commands.h"
 #include "tools/job_options.h"
 
 namespace streamcvd::cli {
 
-nlohmann::json quality_json(const QualityStats& q);  // cmd_inspect.cpp
 void print_quality(const QualityStats& q);
-nlohmann::json cleaning_json(const StoreBuildReport& build);
 void print_cleaning(std::FILE* out, const StoreBuildReport& build, const char* indent);
 
 namespace {
@@ -36,117 +35,6 @@ struct RemeshArgs {
   bool no_strips = false, no_project = false, no_optimize = false, ascii = false, quiet = false, deterministic = false;
   bool keep_work = false;
   JobOptions job;
-};
-
-// The output guarantees of a run (issue: closed manifold in → closed, oriented manifold out).
-nlohmann::json guarantee_checks(const PipelineResult& r, uint32_t requested, bool& all_ok) {
-  const TopologyStats& out = r.output_topology;
-  const RemeshResult& rm = r.remesh;
-  uint64_t cluster_vertices = out.vertices - rm.boundary_vertices_added;
-  bool closed_in = r.input.closed;
-  bool single_component = r.input.components == 1;
-  nlohmann::json j = {
-      {"input_closed_manifold", closed_in},
-      {"output_closed_manifold", out.closed_manifold},
-      {"output_consistently_oriented", out.consistently_oriented},
-      {"output_nonmanifold_edges", out.nonmanifold_edges},
-      {"output_nonmanifold_vertices", out.nonmanifold_vertices},
-      {"output_duplicate_faces", out.duplicate_faces},
-      {"output_degenerate_faces", out.degenerate_faces},
-      {"output_isolated_vertices", out.isolated_vertices},
-      {"clusters_connected", rm.clusters_connected},
-      {"defect_vertices_after_repair", rm.defect_vertices},
-      {"requested_vertices", requested},
-      {"cluster_vertices", cluster_vertices},
-      {"boundary_strip_vertices", rm.boundary_vertices_added},
-      {"exact_vertex_count", out.vertices == requested},
-      {"input_euler_characteristic", r.input.euler_characteristic},
-      {"output_euler_characteristic", out.euler_characteristic},
-  };
-  if (!rm.budget.note.empty()) j["vertex_count_note"] = rm.budget.note;
-  bool manifold_ok = out.nonmanifold_edges == 0 && out.nonmanifold_vertices == 0 && out.duplicate_faces == 0 &&
-                     out.degenerate_faces == 0 && out.isolated_vertices == 0;
-  bool closed_ok = !closed_in || (out.closed_manifold && out.consistently_oriented);
-  bool genus_ok = !closed_in || out.euler_characteristic == r.input.euler_characteristic;
-  if (closed_in && single_component) j["genus_preserved"] = genus_ok;
-  else if (closed_in) j["euler_characteristic_preserved"] = genus_ok;
-  j["manifold_ok"] = manifold_ok;
-  j["closed_ok"] = closed_ok;
-  j["topology_changed"] = rm.topology_changed;
-  const bool components_ok = rm.components.ok();
-  j["components_ok"] = components_ok;
-  j["input_components_with_clusters"] = rm.components.input_components;
-  j["output_components"] = rm.components.output_components;
-  if (!components_ok) j["component_problems"] = rm.components.problems;
-  // Against the input as cleaned (its sheets and their boundaries, streaming/store_clean.h): a
-  // hole below the output resolution may close, none may open; no piece may come apart.
-  const bool holes_ok = out.boundary_loops <= rm.components.input_boundary_loops;
-  const bool pieces_ok = out.components <= rm.components.input_components;
-  j["cleaned_input_boundary_loops"] = rm.components.input_boundary_loops;
-  j["output_boundary_loops"] = out.boundary_loops;
-  j["holes_ok"] = holes_ok;
-  j["pieces_ok"] = pieces_ok;
-  all_ok = manifold_ok && closed_ok && genus_ok && !rm.topology_changed && rm.defect_vertices == 0 && components_ok &&
-           holes_ok && pieces_ok;
-  j["all_ok"] = all_ok;
-  return j;
-}
-
-// The failed guarantees of `checks`, with their figures, on one line.
-std::string failed_checks(const nlohmann::json& checks) {
-  std::string out;
-  auto add = [&](const std::string& what) { out += (out.empty() ? "" : "; ") + what; };
-  if (!checks.value("manifold_ok", true))
-    add("not a clean manifold (" + std::to_string(checks.value("output_nonmanifold_edges", 0)) + " non-manifold edges, " +
-        std::to_string(checks.value("output_nonmanifold_vertices", 0)) + " non-manifold vertices, " +
-        std::to_string(checks.value("output_duplicate_faces", 0)) + " duplicate and " +
-        std::to_string(checks.value("output_degenerate_faces", 0)) + " degenerate faces, " +
-        std::to_string(checks.value("output_isolated_vertices", 0)) + " isolated vertices)");
-  if (!checks.value("closed_ok", true)) add("the input is closed, the output is not");
-  if (!checks.value("genus_preserved", true) || !checks.value("euler_characteristic_preserved", true))
-    add("Euler characteristic " + std::to_string(checks.value("output_euler_characteristic", 0)) + ", the input has " +
-        std::to_string(checks.value("input_euler_characteristic", 0)));
-  if (checks.value("topology_changed", false)) add("topology changed (faces deleted around defects)");
-  if (checks.value("defect_vertices_after_repair", 0) > 0)
-    add(std::to_string(checks.value("defect_vertices_after_repair", 0)) + " vertices still on defects");
-  if (!checks.value("holes_ok", true))
-    add(std::to_string(checks.value("output_boundary_loops", 0)) + " boundary loops, the cleaned input has " +
-        std::to_string(checks.value("cleaned_input_boundary_loops", 0)));
-  if (!checks.value("pieces_ok", true))
-    add(std::to_string(checks.value("output_components", 0)) + " components, the cleaned input has " +
-        std::to_string(checks.value("input_components_with_clusters", 0)) + " with clusters");
-  if (!checks.value("components_ok", true)) {
-    std::string list;
-    for (const auto& p : checks["component_problems"]) list += (list.empty() ? "" : ", ") + p.get<std::string>();
-    add("components: " + list);
-  }
-  return out;
-}
-
-// Disk bytes read and written per stage (the report's io.stages): the counters are read when a
-// stage's final report arrives, so a stage gets what happened since the previous one ended.
-// Out of core this tells which stage pays for the paging.
-class StageIoLog {
- public:
-  void see(const StageProgress& p) {
-    if (!p.finished) return;
-    const IoCounters now = read_io_counters();
-    auto it = std::find_if(stages_.begin(), stages_.end(), [&](const auto& s) { return s.first == p.stage; });
-    if (it == stages_.end()) it = stages_.insert(stages_.end(), {p.stage, IoCounters{}});
-    it->second.read_bytes += now.read_bytes - last_.read_bytes;
-    it->second.write_bytes += now.write_bytes - last_.write_bytes;
-    last_ = now;
-  }
-  void start() { last_ = read_io_counters(); }
-  nlohmann::json json() const {
-    nlohmann::json j = nlohmann::json::object();
-    for (const auto& [stage, io] : stages_) j[stage] = {{"read_bytes", io.read_bytes}, {"write_bytes", io.write_bytes}};
-    return j;
-  }
-
- private:
-  IoCounters last_;
-  std::vector<std::pair<std::string, IoCounters>> stages_;  // in the order they ended
 };
 
 // --attributes: all, none, or a comma-separated list of names.
@@ -169,15 +57,6 @@ void parse_attributes(const std::string& text, PipelineOptions& options) {
     if (end == text.size()) break;
     begin = end + 1;
   }
-}
-
-// The report's attributes: those carried (input names and types) and those the output's format
-// holds.
-nlohmann::json attributes_json(const PipelineResult& r, const std::string& output) {
-  nlohmann::json carried = nlohmann::json::array(), written = nlohmann::json::array();
-  for (const VertexAttribute& a : r.attributes) carried.push_back({{"name", a.name}, {"type", scalar_type_name(a.type)}});
-  for (size_t k : attributes_written(format_from_path(output), r.attributes)) written.push_back(r.attributes[k].name);
-  return {{"carried", carried}, {"written", written}, {"normals", "not carried (not written)"}};
 }
 
 }  // namespace
@@ -304,7 +183,7 @@ void add_remesh_command(CLI::App& app) {
     progress->update({"write"});
     WriteOptions write_options;
     write_options.ascii = args->ascii;
-    write_options.comment = "streamcvd remesh -n " + std::to_string(args->vertices) + " --seed " + std::to_string(args->seed);
+    write_options.comment = remesh_output_comment(options);
     if (!r.attributes.empty()) write_options.attributes = {r.attributes, r.remesh.vertex_attributes};
     write_mesh(args->output, r.remesh.mesh.view(), write_options);
     double write_seconds = now_seconds() - t_write;
@@ -312,113 +191,12 @@ void add_remesh_command(CLI::App& app) {
     progress->finish();
     double total = now_seconds() - t0;
     bool all_ok = false;
-    nlohmann::json checks = guarantee_checks(r, args->vertices, all_ok);
+    const nlohmann::json checks = guarantee_checks(r, args->vertices, all_ok);
     const RemeshResult& rm = r.remesh;
     const ClusteringReport& cr = rm.clustering;
     if (!args->report.empty()) {
-      nlohmann::json j;
-      j["input"] = {{"file", args->input},
-                    {"vertices", r.input.vertices},
-                    {"faces", r.input.faces},
-                    {"components", r.input.components},
-                    {"closed_manifold", r.input.closed},
-                    {"euler_characteristic", r.input.euler_characteristic},
-                    {"subdivision_levels", r.subdivision_levels},
-                    {"remeshed_vertices", r.remeshed_vertices},
-                    {"remeshed_faces", r.remeshed_faces}};
-      if (r.input_build.topology_checked) j["cleaning"] = cleaning_json(r.input_build);
-      j["options"] = {{"vertices", args->vertices},
-                      {"threads", args->threads},
-                      {"clustering_threads", clustering_thread_count(args->threads)},
-                      {"deterministic", args->deterministic},
-                      {"seed", args->seed},
-                      {"metric", metric_name(rm.clustering.metric)},
-                      {"algorithm", args->algorithm},
-                      {"gradation", args->gradation},
-                      {"curvature_rings", args->curvature_rings},
-                      {"qem_threshold", args->qem_threshold},
-                      {"subdivide", args->subdivide},
-                      {"small_components", args->small_components},
-                      {"boundary_strips", !args->no_strips},
-                      {"vertex_placement", uses_quadrics(rm.clustering.metric) ? "QEM point"
-                                           : args->no_project                   ? "centroid"
-                                                                                : "centroid projected onto the input surface"}};
-      j["seconds"] = {{"load", r.load_seconds},          {"store", r.store_seconds},
-                      {"subdivide", r.subdivide_seconds}, {"curvature", rm.seconds.curvature},
-                      {"items", rm.seconds.items},
-                      {"sampling", rm.seconds.sampling},  {"clustering", rm.seconds.clustering},
-                      {"clustering_cpu", rm.seconds.clustering_cpu},
-                      {"repair", rm.seconds.repair},      {"dual", rm.seconds.dual},         {"optimize", rm.seconds.optimize},
-                      {"placement", rm.seconds.placement}, {"checks", rm.seconds.checks},
-                      {"attributes", rm.seconds.attributes},
-                      {"summary", r.summary_seconds},
-                      {"cleaning", r.input_build.cleaning.seconds},
-                      {"write", write_seconds},           {"total", total}};
-      j["clustering"] = {{"clusters", rm.clusters},
-                         {"unconstrained_loops", cr.unconstrained_loops},
-                         {"constrained_loops", cr.constrained_loops},
-                         {"moves_per_loop", cr.moves_per_loop},
-                         {"energy_per_loop", cr.energy_per_loop},
-                         {"seconds_per_loop", cr.seconds_per_loop},
-                         {"cleaned_vertices", cr.cleaned_vertices},
-                         {"disconnected_clusters_cleaned", cr.disconnected_clusters},
-                         {"final_energy", rm.final_energy},
-                         {"clustering_energy", cr.final_energy},
-                         {"repair_rounds", rm.repair_rounds_used},
-                         {"repair_count_rounds", rm.repair_count_rounds},
-                         {"repaired_clusters", rm.repaired_clusters},
-                         {"repair_splits", rm.repair_splits},
-                         {"repair_merges", rm.repair_merges},
-                         {"repair_islands_dissolved", rm.repair_islands},
-                         {"repair_relaxed", rm.repair_relaxed},
-                         {"qem_sites_reverted", rm.sites_reverted},
-                         {"flat_faces_removed", rm.flat_faces_removed},
-                         {"flat_faces_flipped_or_nudged", rm.flat_face_flips},
-                         {"defect_faces_removed", rm.defect_faces_removed},
-                         {"defect_vertices_removed", rm.defect_vertices_removed}};
-      j["quality_pass"] = {{"enabled", !args->no_optimize}, {"flips", rm.quality_flips}, {"moves", rm.quality_moves},
-                           {"strip_moves", rm.strip_moves}};
-      j["strips"] = {{"faces", rm.strip_faces}, {"q_min", rm.strip_q_min}, {"q_avg", rm.strip_q_avg},
-                     {"other_q_avg", rm.other_q_avg}};
-      j["components"] = {{"count", rm.budget.clusters_per_component.size()},
-                         {"small_kept", rm.budget.small_components_kept},
-                         {"dropped", rm.budget.components_dropped}};
-      j["output"] = {{"file", args->output},
-                     {"vertices", r.output_topology.vertices},
-                     {"faces", r.output_topology.faces},
-                     {"boundary_edges", r.output_topology.boundary_edges},
-                     {"boundary_loops", r.output_topology.boundary_loops},
-                     {"holes_closed", rm.holes_closed},
-                     {"duplicate_faces_removed", rm.duplicate_faces_removed},
-                     {"components", r.output_topology.components}};
-      j["attributes"] = attributes_json(r, args->output);
-      j["quality"] = quality_json(r.output_quality);
-      j["checks"] = checks;
-      j["peak_rss_bytes"] = peak_rss_bytes();
-      const MemoryPeak peak = measure_peak_memory();
-      const IoCounters io1 = read_io_counters();
-      j["memory"] = {{"limit_bytes", r.memory_limit},
-                     {"peak_bytes", peak.bytes},
-                     {"peak_source", peak.source == PeakSource::Cgroup ? "cgroup" : "rss"},
-                     {"work_ram_budget_bytes", r.work_ram_bytes == ~uint64_t(0) ? 0 : r.work_ram_bytes},
-                     {"work_file_peak_bytes", r.work_file_peak_bytes},
-                     {"temporary_store_bytes", r.temporary_store_bytes},
-                     {"work_directory", r.work_directory},
-                     {"store_in_ram", r.store_in_ram}};
-      j["io"] = {{"read_bytes", io1.read_bytes - io0.read_bytes},
-                 {"write_bytes", io1.write_bytes - io0.write_bytes},
-                 {"stages", stage_io->json()}};
-      {  // Always there, so that scripts read one shape: a store in RAM has no scheduler, no stages.
-        nlohmann::json stages = nlohmann::json::object();
-        for (const StageVisits& s : r.schedule.stages)
-          stages[s.stage] = {{"visits", s.visits}, {"vertices", s.vertices}, {"chunks_fetched", s.chunks_fetched}};
-        j["chunk_visits"] = {{"scheduled", !r.schedule.stages.empty()},
-                             {"chunks", r.schedule.chunks},
-                             {"resident_budget_bytes", r.schedule.resident_budget_bytes == ~uint64_t(0) ? 0 : r.schedule.resident_budget_bytes},
-                             {"chunks_released", r.schedule.chunks_released},
-                             {"stages", stages}};
-      }
-      if (!r.kept_store.empty()) j["kept_store"] = r.kept_store;
+      const RemeshJobRecord job{args->input, args->output, write_seconds, total, io0, stage_io.get()};
+      const nlohmann::json j = remesh_report(r, options, job);
       write_file_atomic(args->report, j.dump(2) + "\n");
     }
     if (!args->quiet) {

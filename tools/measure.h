@@ -1,6 +1,6 @@
 // Helpers shared by the measuring subcommands (`distance`, `render`, `bench`): loading a mesh
-// file or store as a soup, Metro distances with errors that name the files, JSON of a distance
-// report, and parsing of "az,el" / "WxH" arguments.
+// file or store as a soup, Metro distances with errors that name the files (their JSON:
+// streaming/run_reports.h), and parsing of "az,el" / "WxH" arguments.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -13,9 +13,6 @@
 #include "streaming/store.h"
 
 namespace streamcvd::cli {
-
-/// Hard cap on --samples (per side): 100M samples already take ~2.8 GB (points + query order).
-inline constexpr uint64_t kMaxDistanceSamples = 100'000'000;
 
 /// A mesh file read into RAM, or a store directory mapped: either way a soup view.
 struct LoadedMesh {
@@ -32,10 +29,6 @@ LoadedMesh load_mesh_or_store(const std::string& path, uint64_t memory_limit = 0
 /// "<file>: surface distance: <problem>". Throws InputError.
 DistanceReport measure_distance(const std::string& a_name, const TriangleSoupView& a, const std::string& b_name,
                                 const TriangleSoupView& b, uint64_t samples_per_side, uint64_t seed);
-
-/// {"a_to_b": {max, mean, rms, samples, *_relative}, "b_to_a": ..., "hausdorff",
-/// "hausdorff_relative", "diagonal"}; relative figures are fractions of A's bbox diagonal.
-nlohmann::json distance_json(const DistanceReport& d);
 
 /// Parses "az,el" (degrees) into options.azimuth_deg / elevation_deg. Throws InputError.
 void parse_view(const std::string& text, RenderOptions& options);

@@ -1,6 +1,7 @@
 #include "core/progress.h"
 
 #include <algorithm>
+#include <utility>
 
 namespace streamcvd {
 
@@ -25,8 +26,15 @@ StageReporter::StageReporter(ProgressCallback callback, const MeshView& mesh)
 
 StageReporter::~StageReporter() = default;
 
+void StageReporter::rethrow_pending_locked() {
+  if (!pending_) return;
+  std::exception_ptr e = std::exchange(pending_, nullptr);
+  std::rethrow_exception(e);
+}
+
 void StageReporter::begin(const char* stage) {
   std::lock_guard lock(mutex_);
+  rethrow_pending_locked();
   if (stage_) report_locked(true);
   stage_ = stage;
   round_ = 0;
@@ -37,6 +45,7 @@ void StageReporter::begin(const char* stage) {
 
 void StageReporter::round(uint32_t r, const char* unit) {
   std::lock_guard lock(mutex_);
+  rethrow_pending_locked();
   round_ = r;
   round_unit_ = unit;
   completions_ = vertices_ = 0;  // visits_ stays: the stage does read chunks
@@ -71,7 +80,15 @@ void StageReporter::leave(const char* stage, VertexRange range) {
     visited_[c] += std::min(hi, range.end) - std::max(lo, range.begin);
     completions_ += visited_[c] / size - before;
   }
-  if (stage_ && std::chrono::steady_clock::now() - last_report_ >= kReportInterval) report_locked(false);
+  // leave() runs in RangeVisit's destructor: a callback's exception (a cancelled job) waits for
+  // the next begin() or round(), which throw it.
+  if (stage_ && !pending_ && std::chrono::steady_clock::now() - last_report_ >= kReportInterval) {
+    try {
+      report_locked(false);
+    } catch (...) {
+      pending_ = std::current_exception();
+    }
+  }
 }
 
 void StageReporter::report_locked(bool finished) {

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <exception>
 #include <functional>
 #include <mutex>
 #include <vector>
@@ -31,6 +32,10 @@ struct StageProgress {
 };
 
 /// Receives the reports; may be called from any thread, never from two at once by one reporter.
+/// It may throw to cancel the job (the Python binding does on Ctrl-C): the exception ends the
+/// job, which unwinds without leaving files behind. A report made inside a range visit passes
+/// its exception on at the stage's next round or stage (StageReporter), so cancelling takes
+/// up to one clustering loop.
 using ProgressCallback = std::function<void(const StageProgress&)>;
 
 /// Reports the stages of one job: begin(stage) ... finish(). Installed as the RangeResidency of
@@ -63,6 +68,7 @@ class StageReporter final : public RangeResidency {
 
  private:
   void report_locked(bool finished);  // with mutex_ held
+  void rethrow_pending_locked();      // with mutex_ held: the callback's exception kept by leave()
 
   ProgressCallback callback_;
   RangeResidency* inner_;
@@ -77,6 +83,7 @@ class StageReporter final : public RangeResidency {
   const char* round_unit_ = "pass";
   std::chrono::steady_clock::time_point last_report_{};
   std::mutex mutex_;
+  std::exception_ptr pending_;  // thrown by the callback inside leave(), rethrown by begin()/round()
 };
 
 }  // namespace streamcvd

@@ -5,6 +5,7 @@ set -euo pipefail
 packages=(build-essential cmake g++ pkg-config git
   libeigen3-dev libtbb-dev libzstd-dev zstd libopenmesh-dev libcli11-dev
   libfast-float-dev nlohmann-json3-dev libgtest-dev libpng-dev
+  pybind11-dev python3-dev python3-numpy python3-pytest  # the Python module (python/) and its tests
   clang-14 libclang-rt-14-dev)  # clang: the libFuzzer targets (fuzz/)
 missing=()
 for p in "${packages[@]}"; do

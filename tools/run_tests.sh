@@ -3,6 +3,9 @@
 # fuzz target (fuzz/run_fuzzers.sh); then the whole suite again built with AddressSanitizer +
 # UndefinedBehaviorSanitizer; then the parallel clustering tests built with ThreadSanitizer
 # (ParallelClustering* only, to keep the run short). Installs missing Debian packages first.
+# The Release ctest includes python_tests (pytest of python/tests against the module built for
+# /usr/bin/python3); the sanitizer trees build no Python module (CMake skips it under
+# STREAMCVD_SANITIZE: an instrumented extension cannot load into an uninstrumented python).
 # Usage: tools/run_tests.sh [build-dir]   (default: build; also uses <build-dir>-fuzz, <build-dir>-asan,
 #        <build-dir>-tsan)
 # Environment: STREAMCVD_SKIP_FUZZ=1 / STREAMCVD_SKIP_SANITIZE=1 / STREAMCVD_SKIP_TSAN=1 skip a stage;

@@ -5,7 +5,10 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "core/remesh.h"
@@ -104,6 +107,48 @@ TEST(StageReporter, RemeshReportsEveryStageInOrder) {
   EXPECT_EQ(finished, stages);
   EXPECT_EQ(started, stages);
   EXPECT_EQ(loops, r.clustering.unconstrained_loops + r.clustering.constrained_loops);
+}
+
+// A callback may throw to cancel the job (the Python binding's Ctrl-C). Inside a range visit it
+// runs in RangeVisit's destructor, where an exception would terminate: the reporter keeps it and
+// throws it from the next round or stage instead, once.
+TEST(StageReporter, AnExceptionOfTheCallbackInsideAVisitWaitsForTheNextRound) {
+  const MeshStore store = MeshStore::build(make_torus(60, 40).view(), {.faces_per_chunk = 1000});
+  bool armed = false;
+  int thrown = 0;
+  StageReporter reporter(
+      [&](const StageProgress& p) {
+        if (armed && !p.finished) ++thrown, throw std::runtime_error("cancelled");
+      },
+      store.view());
+  reporter.begin("loops");
+  reporter.round(1, "loop");
+  armed = true;
+  std::this_thread::sleep_for(std::chrono::milliseconds(120));  // past the reporter's rate limit
+  EXPECT_NO_THROW(visit_all(reporter.view(), 300));
+  EXPECT_EQ(thrown, 1);  // one report was due, and the next ones wait for the kept exception
+  armed = false;
+  EXPECT_THROW(reporter.round(2, "loop"), std::runtime_error);
+  EXPECT_NO_THROW(reporter.round(3, "loop"));  // thrown once
+  EXPECT_NO_THROW(reporter.finish());
+}
+
+TEST(StageReporter, ARemeshWhoseCallbackThrowsStopsWithThatException) {
+  const MeshStore store = MeshStore::build(make_torus(60, 40).view(), {.faces_per_chunk = 1000});
+  for (const char* cancel_at : {"sampling", "clustering", "dual"}) {
+    RemeshOptions options;
+    options.vertices = 200;
+    std::vector<std::string> seen;
+    options.progress = [&](const StageProgress& p) {
+      if (seen.empty() || seen.back() != p.stage) seen.push_back(p.stage);
+      // The clustering is cancelled in its second loop (from a round or a visit), the others at their start.
+      const bool clustering = std::string(p.stage) == "clustering";
+      if (std::string(p.stage) == cancel_at && (!clustering || p.round >= 2)) throw std::runtime_error(cancel_at);
+    };
+    EXPECT_THROW(remesh(store.view(), options), std::runtime_error) << cancel_at;
+    ASSERT_FALSE(seen.empty());
+    EXPECT_EQ(seen.back(), cancel_at);  // no stage ran after the one cancelled
+  }
 }
 
 }  // namespace

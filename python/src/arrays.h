@@ -32,8 +32,9 @@ struct InputMesh {
   /// The arrays as the library's soup (valid while this object lives).
   TriangleSoupView view() const;
   VertexAttributeRows attribute_rows() const { return {attributes, attribute_values}; }
-  /// Streams the mesh into `sink` as a reader would (header, vertex blocks, triangle blocks, end);
-  /// throws `Cancelled` between blocks once `cancel` is set. Without the GIL.
+  /// Streams the mesh into `sink` as a reader would (header, vertex blocks, triangle blocks, end):
+  /// streaming/store_build.h's stream_soup with the attribute rows, throwing `Cancelled` between
+  /// blocks once `cancel` is set. Without the GIL.
   void stream(MeshSink& sink, const std::atomic<bool>& cancel) const;
 };
 

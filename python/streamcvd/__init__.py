@@ -24,3 +24,7 @@ __all__ = [
     "InputError", "Mesh", "OutputError", "Result", "__version__", "distance", "info", "ingest",
     "quality", "read", "remesh", "remesh_file", "write",
 ]
+
+for _type in (InputError, Mesh, OutputError, Result):
+    _type.__module__ = __name__  # streamcvd.Result, not streamcvd._core.Result, in reprs and errors
+del _type

@@ -276,14 +276,14 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
     uint32_t C = N;
     for (uint32_t pass = 0; pass < 4 && (C + S > N + N / 20 || C + S + N / 20 < N); ++pass) {
       C = (C + (S < N ? N - S : 0)) / 2;
-      if (C < N / 2) break;
+      if (2 * uint64_t(C) < N) break;
       sample_and_cluster(C);
       dual_options.strip_spacing = typical_dual_edge(items.total_area, C);
       dual_options.close_hole_diameter = 2.0 * dual_options.strip_spacing;
       S = strip_vertex_count(mesh, labels, K, boundary_loops, dual_options);
     }
     searched = C != N;
-    if (C < N / 2 || S >= N / 2) give_up(searched), searched = false;  // the interior would fall below N/2
+    if (2 * uint64_t(C) < N || 2 * uint64_t(S) >= N) give_up(searched), searched = false;  // interior below N/2
   } else if (S > N / 20) {
     sample_and_cluster(N - S);
   }

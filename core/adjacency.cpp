@@ -19,6 +19,7 @@ namespace {
 constexpr size_t kVertexGrain = 2048;
 // Vertices per block of build_vertex_vertex_adjacency (fixed: the blocks define its layout).
 constexpr uint64_t kRingBlock = 4096;
+constexpr uint32_t kPrefetchAhead = 8;  // vertices
 constexpr uint32_t kScanBlocks = 64;  // vertex blocks of the parallel prefix sums
 
 // Valences are small (~6): insertion sort beats std::sort there; big fans fall back to it.
@@ -321,7 +322,12 @@ void build_vertex_vertex_adjacency(std::span<const uint32_t> triangles, uint32_t
     const uint64_t slot_end = slot_begin(b + 1);
     uint64_t at = slot_begin(b);
     std::vector<uint32_t>* spill = nullptr;
-    for (uint32_t v = block_begin(b); v != block_begin(b + 1); ++v) {
+    const uint32_t block_end = block_begin(b + 1);
+    for (uint32_t v = block_begin(b); v != block_end; ++v) {
+      // The faces of a vertex a few ahead are fetched while this one is worked on: the fan
+      // test is bound by the latency of those scattered triangle reads.
+      if (v + kPrefetchAhead < block_end)
+        for (uint32_t f : faces_of(v + kPrefetchAhead)) __builtin_prefetch(&triangles[3 * size_t(f)]);
       const auto faces = faces_of(v);
       s.ring.resize(2 * faces.size());  // ≤ 2 new neighbours per face
       const bool direct = !spill && at + 2 * faces.size() <= slot_end;

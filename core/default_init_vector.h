@@ -3,13 +3,13 @@
 // first, and each page is faulted in by the thread that fills it. Big arrays are page-aligned.
 #pragma once
 
-#include <sys/mman.h>
-
 #include <cstddef>
 #include <memory>
 #include <new>
 #include <utility>
 #include <vector>
+
+#include "core/anonymous_pages.h"
 
 namespace streamcvd {
 
@@ -30,13 +30,13 @@ struct DefaultInitAllocator : std::allocator<T> {
   T* allocate(std::size_t n) {
     if (n * sizeof(T) < kPageAlignFrom) return std::allocator<T>::allocate(n);
     if (n > std::size_t(-1) / sizeof(T)) throw std::bad_array_new_length();
-    void* p = ::mmap(nullptr, n * sizeof(T), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (p == MAP_FAILED) throw std::bad_alloc();
+    void* p = map_anonymous_pages(n * sizeof(T));
+    if (!p) throw std::bad_alloc();
     return static_cast<T*>(p);
   }
   void deallocate(T* p, std::size_t n) noexcept {
     if (n * sizeof(T) < kPageAlignFrom) return std::allocator<T>::deallocate(p, n);
-    ::munmap(p, n * sizeof(T));
+    unmap_anonymous_pages(p, n * sizeof(T));
   }
   /// construct(p) default-initialises (no zeroing); with arguments it constructs as usual.
   template <typename U, typename... Args>

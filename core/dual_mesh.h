@@ -16,10 +16,10 @@ namespace streamcvd {
 
 struct DualMeshOptions {
   bool boundary_strips = true;  ///< §VI-D: one vertex + two triangles per cluster change along a boundary
-  /// Boundary loops shorter than this (input units), meeting 3 or more clusters each once, are
-  /// holes below the output resolution: they close (one triangle for 3 clusters, else a fan
-  /// from the loop's centroid) instead of getting a strip of slivers. 0 = never.
-  double close_hole_perimeter = 0;
+  /// Boundary loops whose diameter (largest distance between two of their vertices, input
+  /// units) is below this are holes under the output resolution: they close (a triangle or a fan
+  /// over the clusters around them) instead of getting a strip of slivers. 0 = never.
+  double close_hole_diameter = 0;
   /// Typical output edge length (typical_dual_edge), 0 = off. When set, the strip follows the
   /// clusters' spacing rather than the input's boundary edges: consecutive cluster changes whose
   /// strip points are closer than half of it share one point (while the clusters around the

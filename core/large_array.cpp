@@ -1,8 +1,8 @@
 #include "core/large_array.h"
 
-#include <sys/mman.h>
-
 #include <new>
+
+#include "core/anonymous_pages.h"
 
 namespace streamcvd {
 namespace {
@@ -12,11 +12,11 @@ namespace {
 class RamStorage final : public ArrayStorage {
  public:
   void* allocate(size_t bytes, const char*) override {
-    void* p = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (p == MAP_FAILED) throw std::bad_alloc();
+    void* p = map_anonymous_pages(bytes);
+    if (!p) throw std::bad_alloc();
     return p;
   }
-  void release(void* data, size_t bytes) noexcept override { ::munmap(data, bytes); }
+  void release(void* data, size_t bytes) noexcept override { unmap_anonymous_pages(data, bytes); }
 };
 
 }  // namespace

@@ -17,6 +17,7 @@
 #include <mutex>
 #include <stdexcept>
 
+#include "core/anonymous_pages.h"
 #include "core/errors.h"
 
 namespace streamcvd {
@@ -315,10 +316,9 @@ void AtomicOutputFile::write_direct(const void* data, size_t n) {
   // Mapped, not malloc'ed: page-aligned, and returned to the system at once (a freed malloc
   // block of this size may stay resident in a thread's arena and add to the peak RSS).
   struct Unmap {
-    void operator()(char* p) const { ::munmap(p, kDirectBlock); }
+    void operator()(char* p) const { unmap_anonymous_pages(p, kDirectBlock); }
   };
-  void* mapped = ::mmap(nullptr, kDirectBlock, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-  std::unique_ptr<char, Unmap> bounce(mapped == MAP_FAILED ? nullptr : static_cast<char*>(mapped));
+  std::unique_ptr<char, Unmap> bounce(static_cast<char*>(map_anonymous_pages(kDirectBlock)));
   const char* p = static_cast<const char*>(data);
   size_t left = n;
   bool padded = false;

@@ -78,7 +78,7 @@ nlohmann::json cleaning_json(const StoreBuildReport& b) {
     const StoreBuildReport::TopologyScreen& s = b.screen;
     return {{"rebuilt", false},
             {"input_nonmanifold_vertices", s.nonmanifold_vertices},
-            {"input_duplicate_faces", s.duplicate_faces},
+            {"input_duplicate_faces", s.isolated_twin_faces},  // all zero here: no duplicate at all
             {"input_repeated_index_faces", s.repeated_index_faces}};
   }
   const TopologyCleaning& c = b.cleaning;

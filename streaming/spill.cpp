@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstring>
 
+#include "core/anonymous_pages.h"
 #include "core/errors.h"
 #include "streaming/output_file.h"
 
@@ -103,7 +104,7 @@ void ScratchFile::read(uint64_t offset, void* dst, size_t n) const {
 // ---- BlockPool --------------------------------------------------------------------------------
 
 BlockPool::~BlockPool() {
-  for (std::byte* b : free_) ::munmap(b, block_bytes_);
+  for (std::byte* b : free_) unmap_anonymous_pages(b, block_bytes_);
 }
 
 std::byte* BlockPool::get() {
@@ -114,8 +115,8 @@ std::byte* BlockPool::get() {
     free_.pop_back();
     return b;
   }
-  void* m = ::mmap(nullptr, block_bytes_, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-  if (m == MAP_FAILED) {
+  void* m = map_anonymous_pages(block_bytes_);
+  if (!m) {
     --in_use_;
     throw std::bad_alloc();
   }
@@ -128,7 +129,7 @@ void BlockPool::put(std::byte* block) {
   std::lock_guard lock(mutex_);
   --in_use_;
   if (free_.size() < kKeepFree) free_.push_back(block);
-  else ::munmap(block, block_bytes_);
+  else unmap_anonymous_pages(block, block_bytes_);
 }
 
 size_t BlockPool::in_use() const {

@@ -92,13 +92,15 @@ struct StoreBuildReport {
   uint64_t memory_limit = 0;                    ///< the limit planned with (0 = unlimited)
   uint64_t spilled_bytes = 0;                   ///< bytes written to scratch files
   double read_seconds = 0, order_seconds = 0, faces_seconds = 0, adjacency_seconds = 0;
-  /// What the topology cleaning acts on, counted exactly while the ranges are built (pass 4):
-  /// vertices flagged non-manifold (every non-manifold edge flags its ends), faces with a
-  /// repeated index, and duplicate faces (same vertex set; a duplicate has its twin's owner).
-  /// All zero: the store needs no cleaning, and its full figures are not computed.
+  /// What the topology cleaning acts on, counted while the ranges are built (pass 4): vertices
+  /// flagged non-manifold (every non-manifold edge flags its ends, and so does every duplicate
+  /// face but an isolated pair), faces with a repeated index, and isolated twin faces (a face
+  /// and its twin with no other face at their corners). All zero exactly when the store has
+  /// no duplicate, repeated-index or non-manifold element: it then needs no cleaning, and its
+  /// full figures are not computed.
   struct TopologyScreen {
-    uint64_t nonmanifold_vertices = 0, repeated_index_faces = 0, duplicate_faces = 0;
-    bool any() const { return nonmanifold_vertices + repeated_index_faces + duplicate_faces > 0; }
+    uint64_t nonmanifold_vertices = 0, repeated_index_faces = 0, isolated_twin_faces = 0;
+    bool any() const { return nonmanifold_vertices + repeated_index_faces + isolated_twin_faces > 0; }
   } screen;
   /// clean_topology ran: the screen's verdict, and what the cleaning did. Unset otherwise.
   bool topology_checked = false;

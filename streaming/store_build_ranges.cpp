@@ -242,6 +242,7 @@ void RangePass::local_adjacency(uint32_t) {
   a_->flags.resize(n_);
   build_vertex_vertex_adjacency(std::span<const uint32_t>(a_->tri), vb_, std::span<const uint64_t>(a_->vf_off),
                                 std::span<const uint32_t>(a_->vf), a_->vv_off, a_->vv, std::span<uint8_t>(a_->flags));
+  screen_topology();
   // Local face indices → face ids (foreign faces first, then the owned ones from face_base_).
   const ForeignFace* foreign = reinterpret_cast<const ForeignFace*>(foreign_in_.data());
   const uint64_t fc = foreign_count_, base = face_base_;
@@ -253,62 +254,49 @@ void RangePass::local_adjacency(uint32_t) {
   });
 }
 
-// The cleaning's screen over the range (StoreBuildReport::TopologyScreen): its flagged vertices,
-// and among each owner's faces those with a repeated index and the duplicates (a face's vertex
-// set fixes its owner, the smallest, so twins share an owner run). One parallel pass over the
-// owned faces while they are in RAM: no pass over the built store to decide on the cleaning.
+// The cleaning's screen over the range (StoreBuildReport::TopologyScreen), from what the
+// adjacency pass has just built: its flagged vertices, its faces with a repeated index, and
+// its isolated twins. A duplicate face anywhere else puts a third face on one of its edges or
+// a second fan at one of its corners, so the flags show it; only a face and its twin alone
+// (each corner with exactly those two faces) need a look. Exact for any(): O(faces) compares
+// and O(n) flag reads, no sort. Runs before the face lists are turned into face ids.
 void RangePass::screen_topology() {
   using Screen = StoreBuildReport::TopologyScreen;
-  const uint32_t* owned = a_->tri.data() + 3 * foreign_count_;
-  tbb::enumerable_thread_specific<std::vector<uint64_t>> many;  // owners of more than kFew faces
-  constexpr size_t kFew = 16;
+  const uint32_t* tri = a_->tri.data();
+  const uint64_t owned_begin = foreign_count_, owned_end = a_->tri.size() / 3;
+  auto same_set = [&](uint32_t f, uint32_t g) {
+    uint32_t x[3] = {tri[3 * f], tri[3 * f + 1], tri[3 * f + 2]}, y[3] = {tri[3 * g], tri[3 * g + 1], tri[3 * g + 2]};
+    std::sort(x, x + 3);
+    std::sort(y, y + 3);
+    return x[0] == y[0] && x[1] == y[1] && x[2] == y[2];
+  };
   const Screen found = tbb::parallel_reduce(
-      tbb::blocked_range<uint32_t>(0, n_, 4096), Screen{},
+      tbb::blocked_range<uint32_t>(0, n_, 1 << 14), Screen{},
       [&](const tbb::blocked_range<uint32_t>& q, Screen sc) {
         for (uint32_t v = q.begin(); v != q.end(); ++v) {
           sc.nonmanifold_vertices += (a_->flags[v] & kVertexNonManifold) != 0;
-          const uint64_t begin = owned_start_[v], end = owned_start_[v + 1];
-          // The owner is the smallest corner: the other two, ordered, name the vertex set. A
-          // face is a duplicate when an earlier face of its owner has its key (so a triple
-          // counts two, as compute_topology_stats counts them).
-          uint64_t few[kFew];
-          size_t keys = 0;
-          std::vector<uint64_t>* more = end - begin > kFew ? &many.local() : nullptr;
-          if (more) more->clear();
-          for (uint64_t i = begin; i != end; ++i) {
-            const uint32_t* t = owned + 3 * i;
-            if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
-              ++sc.repeated_index_faces;
-              continue;
-            }
-            const uint32_t mid = std::max(std::min(t[0], t[1]), std::min(std::max(t[0], t[1]), t[2]));
-            const uint64_t key = uint64_t(mid) << 32 | std::max({t[0], t[1], t[2]});
-            if (more) {
-              more->push_back(key);
-              continue;
-            }
-            bool seen = false;
-            for (size_t j = 0; j < keys; ++j) seen |= few[j] == key;
-            sc.duplicate_faces += seen;
-            if (!seen) few[keys++] = key;
-          }
-          if (more) {
-            std::sort(more->begin(), more->end());
-            sc.duplicate_faces += uint64_t(more->size() - (std::unique(more->begin(), more->end()) - more->begin()));
-          }
+          if (a_->vf_off[v + 1] - a_->vf_off[v] != 2) continue;
+          const uint32_t f = a_->vf[a_->vf_off[v]], g = a_->vf[a_->vf_off[v] + 1];
+          // Counted once, at the pair's owner (its smallest corner), when both faces are owned here.
+          const uint32_t* t = tri + 3 * size_t(f);
+          if (f >= owned_begin && std::min({t[0], t[1], t[2]}) == vb_ + v && same_set(f, g)) ++sc.isolated_twin_faces;
         }
         return sc;
       },
       [](Screen a, const Screen& b) {
         a.nonmanifold_vertices += b.nonmanifold_vertices;
-        a.repeated_index_faces += b.repeated_index_faces;
-        a.duplicate_faces += b.duplicate_faces;
+        a.isolated_twin_faces += b.isolated_twin_faces;
         return a;
       });
+  uint64_t repeated = 0;
+  for (uint64_t f = owned_begin; f != owned_end; ++f) {
+    const uint32_t* t = tri + 3 * f;
+    repeated += (t[0] == t[1]) | (t[1] == t[2]) | (t[0] == t[2]);
+  }
   Screen& total = s_.result.report.screen;
   total.nonmanifold_vertices += found.nonmanifold_vertices;
-  total.repeated_index_faces += found.repeated_index_faces;
-  total.duplicate_faces += found.duplicate_faces;
+  total.isolated_twin_faces += found.isolated_twin_faces;
+  total.repeated_index_faces += repeated;
 }
 
 // Appends one range's arrays to the outputs (on the writer thread), offsets made global.
@@ -466,7 +454,6 @@ void RangePass::run() {
     send_foreign(r);
     tick(3);
     local_adjacency(r);
-    screen_topology();
     tick(4);
     chunk_stats(r, in);
     tick(6);

@@ -12,6 +12,7 @@
 #include <map>
 #include <new>
 
+#include "core/anonymous_pages.h"
 #include "core/errors.h"
 #include "streaming/output_file.h"
 
@@ -54,8 +55,8 @@ void* WorkSpace::allocate(size_t bytes, const char* name) {
     }
   }
   if (in_ram) {
-    void* p = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (p == MAP_FAILED) {
+    void* p = map_anonymous_pages(bytes);
+    if (!p) {
       ram_ -= bytes;
       throw std::bad_alloc();
     }

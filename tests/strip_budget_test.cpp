@@ -1,0 +1,54 @@
+// Tests of the vertex budget when the boundary strips need a large share of N (core/remesh.cpp):
+// the cluster count C is searched so that C clusters plus their strip vertices make N, and the
+// N-cluster output (with a note) comes back when that would leave the interior below N/2 or the
+// repair cannot make C clusters valid.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <cstdio>
+
+#include "core/mesh_stats.h"
+#include "core/remesh.h"
+#include "streaming/mesh_io.h"
+#include "streaming/remesh_pipeline.h"
+#include "streaming/store.h"
+#include "tests/test_util.h"
+
+namespace streamcvd {
+namespace {
+
+TEST(StripBudget, ElephantWithHolesGetsExactlyNWhenTheInteriorKeepsHalf) {
+  // 2,798 vertices, 106 holes. At N = 1000 the strips of 1000 clusters need 734 vertices
+  // (over N/2): about 500 larger clusters need fewer than 500, so N is met. At N = 500 the
+  // interior would fall below N/2: the output is the N clusters with their strips, and says so.
+  const MeshBuffers holes = read_mesh(test::data_path("cgal_elephant_with_holes.off"));
+  const TopologyStats in = compute_topology_stats(holes.view());
+  MeshStore store = MeshStore::build(holes.view());
+  for (uint32_t n : {1000u, 500u}) {
+    SCOPED_TRACE(n);
+    PipelineOptions o;
+    o.remesh.vertices = n;
+    const PipelineResult r = remesh_store(store, o);
+    const RemeshResult& m = r.remesh;
+    std::printf("[ budget   ] elephant with holes -> N=%u: %u vertices, %llu strip vertices, %llu loops kept, %llu closed\n", n,
+                m.mesh.vertex_count(), (unsigned long long)m.boundary_vertices_added,
+                (unsigned long long)r.output_topology.boundary_loops, (unsigned long long)m.holes_closed);
+    EXPECT_TRUE(m.components.ok()) << m.components.problems.front();
+    EXPECT_EQ(r.output_topology.nonmanifold_edges + r.output_topology.nonmanifold_vertices, 0u);
+    EXPECT_EQ(m.defect_faces_removed, 0u);
+    EXPECT_EQ(r.output_topology.boundary_loops + m.holes_closed, in.boundary_loops);
+    if (n == 1000) {
+      EXPECT_EQ(m.mesh.vertex_count(), n) << m.budget.note;
+      EXPECT_EQ(m.vertex_shortfall, 0);
+      EXPECT_TRUE(m.budget.note.empty()) << m.budget.note;
+      EXPECT_LT(2 * m.boundary_vertices_added, n);
+    } else {
+      EXPECT_GT(m.mesh.vertex_count(), n);
+      EXPECT_NE(m.budget.note.find("boundary strips need"), std::string::npos) << m.budget.note;
+      EXPECT_GE(2 * m.boundary_vertices_added, n);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace streamcvd

@@ -20,6 +20,7 @@
 #include "core/adjacency.h"
 #include "core/errors.h"
 #include "core/mesh_view.h"
+#include "core/topology_conventions.h"
 #include "streaming/counting_sort.h"
 #include "streaming/store_build_state.h"
 #include "streaming/store_writer.h"
@@ -263,40 +264,32 @@ void RangePass::local_adjacency(uint32_t) {
 void RangePass::screen_topology() {
   using Screen = StoreBuildReport::TopologyScreen;
   const uint32_t* tri = a_->tri.data();
-  const uint64_t owned_begin = foreign_count_, owned_end = a_->tri.size() / 3;
-  auto same_set = [&](uint32_t f, uint32_t g) {
-    uint32_t x[3] = {tri[3 * f], tri[3 * f + 1], tri[3 * f + 2]}, y[3] = {tri[3 * g], tri[3 * g + 1], tri[3 * g + 2]};
-    std::sort(x, x + 3);
-    std::sort(y, y + 3);
-    return x[0] == y[0] && x[1] == y[1] && x[2] == y[2];
-  };
+  const uint32_t* owned = tri + 3 * foreign_count_;
+  auto corners = [&](uint32_t f) { return topology::vertex_set(tri[3 * f], tri[3 * f + 1], tri[3 * f + 2]); };
   const Screen found = tbb::parallel_reduce(
       tbb::blocked_range<uint32_t>(0, n_, 1 << 14), Screen{},
       [&](const tbb::blocked_range<uint32_t>& q, Screen sc) {
         for (uint32_t v = q.begin(); v != q.end(); ++v) {
           sc.nonmanifold_vertices += (a_->flags[v] & kVertexNonManifold) != 0;
+          for (uint64_t i = owned_start_[v]; i != owned_start_[v + 1]; ++i)
+            sc.repeated_index_faces += topology::repeated_index(owned[3 * i], owned[3 * i + 1], owned[3 * i + 2]);
           if (a_->vf_off[v + 1] - a_->vf_off[v] != 2) continue;
           const uint32_t f = a_->vf[a_->vf_off[v]], g = a_->vf[a_->vf_off[v] + 1];
           // Counted once, at the pair's owner (its smallest corner), when both faces are owned here.
-          const uint32_t* t = tri + 3 * size_t(f);
-          if (f >= owned_begin && std::min({t[0], t[1], t[2]}) == vb_ + v && same_set(f, g)) ++sc.isolated_twin_faces;
+          if (f >= foreign_count_ && corners(f)[0] == vb_ + v && corners(f) == corners(g)) ++sc.isolated_twin_faces;
         }
         return sc;
       },
       [](Screen a, const Screen& b) {
         a.nonmanifold_vertices += b.nonmanifold_vertices;
+        a.repeated_index_faces += b.repeated_index_faces;
         a.isolated_twin_faces += b.isolated_twin_faces;
         return a;
       });
-  uint64_t repeated = 0;
-  for (uint64_t f = owned_begin; f != owned_end; ++f) {
-    const uint32_t* t = tri + 3 * f;
-    repeated += (t[0] == t[1]) | (t[1] == t[2]) | (t[0] == t[2]);
-  }
   Screen& total = s_.result.report.screen;
   total.nonmanifold_vertices += found.nonmanifold_vertices;
   total.isolated_twin_faces += found.isolated_twin_faces;
-  total.repeated_index_faces += repeated;
+  total.repeated_index_faces += found.repeated_index_faces;
 }
 
 // Appends one range's arrays to the outputs (on the writer thread), offsets made global.

@@ -257,6 +257,7 @@ TEST(StoreClean, RepeatedIndexFacesGoZeroAreaFacesOfAManifoldStay) {
   m.triangles.insert(m.triangles.end(), {a, a, b});
   StoreBuildReport r;
   build(m, r);
+  EXPECT_EQ(r.screen.repeated_index_faces, 1u);
   EXPECT_TRUE(r.cleaning.rebuilt);
   EXPECT_EQ(r.cleaning.degenerate_faces_dropped, 1u);
   EXPECT_TRUE(r.cleaning.cleaned.closed_manifold);

@@ -14,6 +14,7 @@
 #include <csignal>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <mutex>
 #include <stdexcept>
 
@@ -47,6 +48,7 @@ struct Slot {
   std::atomic<uint64_t> word{0};
   std::atomic<int> dir_fd{-1};
   std::atomic<pid_t> pid{0};
+  std::atomic<bool> directory{false};  // an empty folder this process made (CreatedDirectory)
   std::atomic<char> name[kSlotName];
 };
 Slot g_slots[kSlots];
@@ -54,7 +56,7 @@ std::atomic<bool> g_anonymous{true};
 
 uint64_t next_word(uint64_t word, SlotState state) { return (((word >> 2) + 1) << 2) | state; }
 
-int register_temp(int dir_fd, const std::string& name) {
+int register_temp(int dir_fd, const std::string& name, bool directory = false) {
   if (name.size() >= kSlotName) return -1;
   for (int i = 0; i < kSlots; ++i) {
     Slot& s = g_slots[i];
@@ -64,6 +66,7 @@ int register_temp(int dir_fd, const std::string& name) {
     if (!s.word.compare_exchange_strong(w, busy, std::memory_order_acq_rel)) continue;
     s.dir_fd.store(dir_fd, std::memory_order_relaxed);
     s.pid.store(::getpid(), std::memory_order_relaxed);
+    s.directory.store(directory, std::memory_order_relaxed);
     for (size_t k = 0; k <= name.size(); ++k) s.name[k].store(name.c_str()[k], std::memory_order_relaxed);
     s.word.store(next_word(busy, kLive), std::memory_order_release);
     return i;
@@ -107,21 +110,81 @@ std::string hex64(uint64_t v) {
 
 void remove_temp_files_now() noexcept {
   const pid_t self = ::getpid();  // a forked child must not delete its parent's files
-  for (Slot& s : g_slots) {
-    uint64_t w1 = s.word.load(std::memory_order_acquire);
-    if ((w1 & 3) != kLive) continue;
-    int dir_fd = s.dir_fd.load(std::memory_order_relaxed);
-    pid_t pid = s.pid.load(std::memory_order_relaxed);
-    char name[kSlotName];
-    for (size_t k = 0; k < kSlotName; ++k) {
-      name[k] = s.name[k].load(std::memory_order_relaxed);
-      if (name[k] == '\0') break;
+  // Files first, then the folders made for them: a folder goes only once empty (rmdir fails
+  // otherwise), and a nested one before its parent, hence one pass per level (a few at most).
+  for (int pass = 0; pass < 4; ++pass) {
+    for (Slot& s : g_slots) {
+      uint64_t w1 = s.word.load(std::memory_order_acquire);
+      if ((w1 & 3) != kLive) continue;
+      int dir_fd = s.dir_fd.load(std::memory_order_relaxed);
+      pid_t pid = s.pid.load(std::memory_order_relaxed);
+      const bool directory = s.directory.load(std::memory_order_relaxed);
+      if (directory != (pass > 0)) continue;
+      char name[kSlotName];
+      for (size_t k = 0; k < kSlotName; ++k) {
+        name[k] = s.name[k].load(std::memory_order_relaxed);
+        if (name[k] == '\0') break;
+      }
+      name[kSlotName - 1] = '\0';
+      std::atomic_thread_fence(std::memory_order_acquire);
+      if (s.word.load(std::memory_order_relaxed) != w1 || pid != self) continue;
+      ::unlinkat(dir_fd, name, directory ? AT_REMOVEDIR : 0);
     }
-    name[kSlotName - 1] = '\0';
-    std::atomic_thread_fence(std::memory_order_acquire);
-    if (s.word.load(std::memory_order_relaxed) != w1 || pid != self) continue;
-    ::unlinkat(dir_fd, name, 0);
   }
+}
+
+CreatedDirectory::CreatedDirectory(const std::string& path) {
+  namespace fs = std::filesystem;
+  // The missing levels, outermost first: each is made, then registered for removal.
+  std::vector<fs::path> missing;
+  std::error_code ec;
+  for (fs::path p = fs::path(path).lexically_normal(); !p.empty() && !fs::exists(p, ec); p = p.parent_path()) {
+    if (p.has_filename()) missing.push_back(p);
+    if (p == p.parent_path()) break;
+  }
+  try {
+    for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
+      const std::string parent = it->has_parent_path() ? it->parent_path().string() : ".";
+      const std::string name = it->filename().string();
+      const int parent_fd = ::open(parent.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+      if (parent_fd < 0) throw OutputError(error_at(path, "cannot open folder '" + parent + "': " + std::strerror(errno)));
+      const int slot = register_temp(parent_fd, name, /*directory=*/true);  // before: see the registry
+      if (::mkdirat(parent_fd, name.c_str(), 0777) != 0 && errno != EEXIST) {
+        const int e = errno;
+        unregister_temp(slot);
+        ::close(parent_fd);
+        throw OutputError(error_at(path, "cannot create folder: " + std::string(std::strerror(e))));
+      }
+      made_.push_back({parent_fd, name, slot});
+    }
+  } catch (...) {
+    remove_made();
+    throw;
+  }
+  std::error_code is_dir_error;
+  if (!fs::is_directory(path, is_dir_error)) {
+    remove_made();
+    throw OutputError(error_at(path, "is not a folder"));
+  }
+}
+
+CreatedDirectory::~CreatedDirectory() { remove_made(); }
+
+void CreatedDirectory::keep() noexcept {
+  for (Level& level : made_) {
+    unregister_temp(level.slot);
+    ::close(level.parent_fd);
+  }
+  made_.clear();
+}
+
+void CreatedDirectory::remove_made() noexcept {
+  for (auto it = made_.rbegin(); it != made_.rend(); ++it) {  // innermost first; only if empty
+    ::unlinkat(it->parent_fd, it->name.c_str(), AT_REMOVEDIR);
+    unregister_temp(it->slot);
+    ::close(it->parent_fd);
+  }
+  made_.clear();
 }
 
 void ignore_file_size_signal() {

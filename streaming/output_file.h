@@ -124,6 +124,30 @@ void set_anonymous_temp_files(bool enabled);
   bool anonymous_ = false;  // O_TMPFILE: no name on disk until commit()
 };
 
+/// A folder a job makes for its output (with any missing parents), removed again, where still
+/// empty, unless keep() is called: an error, an exception or SIGINT/SIGTERM/SIGHUP (the signal
+/// cleanup of install_signal_cleanup) leaves no empty store folder behind. A folder that
+/// existed is left alone. Throws OutputError naming the folder. Not thread-safe.
+class CreatedDirectory {
+ public:
+  explicit CreatedDirectory(const std::string& path);
+  ~CreatedDirectory();
+  CreatedDirectory(const CreatedDirectory&) = delete;
+  CreatedDirectory& operator=(const CreatedDirectory&) = delete;
+
+  /// The job succeeded: the folder stays.
+  void keep() noexcept;
+
+ private:
+  struct Level {
+    int parent_fd;  // open for the lifetime, so that a rename of the parent cannot misdirect rmdir
+    std::string name;
+    int slot;  // signal registry slot (-1: none free)
+  };
+  void remove_made() noexcept;
+  std::vector<Level> made_;  // outermost first
+};
+
 /// fsyncs a folder, making renames and removals inside it durable. File systems that cannot
 /// fsync a folder (EINVAL, EROFS) are accepted. Throws OutputError "<folder>: <problem>".
 void sync_directory(const std::string& folder);

@@ -442,10 +442,9 @@ MeshStore MeshStore::ingest(const std::string& input, const std::string& directo
   std::error_code stale;
   std::filesystem::remove(std::filesystem::path(directory) / kCleaningFile, stale);  // the store it may replace
   if (o.work_directory.empty()) o.work_directory = directory;
-  if (o.work_directory == directory) {  // scratch files go beside the store: the folder must exist
-    std::error_code ec;
-    std::filesystem::create_directories(directory, ec);
-  }
+  // The store's folder (scratch files go there by default) exists from here, and a failed or
+  // interrupted build that made it leaves none behind.
+  CreatedDirectory folder(directory);
   DirectoryOutputs out(directory, stream_blocks_in_flight(o.memory_limit));
   StoreBuilder builder(out, o, progress);
   stream_file(input, builder, read, progress);
@@ -473,6 +472,7 @@ MeshStore MeshStore::ingest(const std::string& input, const std::string& directo
     }
   }
   if (report) *report = built;
+  folder.keep();
   return store;
 }
 

@@ -15,12 +15,7 @@
 namespace streamcvd {
 
 StoreDirectoryWriter::StoreDirectoryWriter(std::string directory, bool background)
-    : directory_(std::move(directory)), background_(background) {
-  std::error_code ec;
-  std::filesystem::create_directories(directory_, ec);
-  if (ec || !std::filesystem::is_directory(directory_))
-    throw OutputError(
-        error_at(directory_, "cannot create store directory" + (ec ? ": " + ec.message() : std::string())));
+    : directory_(std::move(directory)), created_(directory_), background_(background) {
   // Step 1. The removal is durable before any array is replaced, so that after a crash an old
   // header never describes new arrays.
   const std::string header_path = directory_ + "/header.bin";
@@ -109,6 +104,7 @@ void StoreDirectoryWriter::finish(const std::string& name, std::span<const std::
   AtomicOutputFile out(directory_ + "/" + name);  // step 4
   out.write(header.data(), header.size());
   out.commit();
+  created_.keep();
 }
 
 }  // namespace streamcvd

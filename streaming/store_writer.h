@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "core/default_init_vector.h"
+#include "streaming/output_file.h"
 
 namespace streamcvd {
 
@@ -131,6 +132,7 @@ class StoreDirectoryWriter {
   void worker();
 
   std::string directory_;
+  CreatedDirectory created_;  // a folder made here goes again unless finish() commits the store
   bool background_;
   std::vector<Job> pending_;  // foreground mode: written by finish()
   std::mutex mutex_;          // guards done_ and the queue

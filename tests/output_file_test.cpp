@@ -152,5 +152,42 @@ TEST(AtomicOutputFileDirect, SyncThenCommitAndPatchAfterSync) {
   fs::remove_all(dir);
 }
 
+// ---- CreatedDirectory: the store folder a failed job must not leave -------------------------
+
+TEST(CreatedDirectory, MadeLevelsGoAgainUnlessKept) {
+  const fs::path root = test::temp_dir("created_dir");
+  { CreatedDirectory made((root / "a" / "b" / "c").string()); EXPECT_TRUE(fs::is_directory(root / "a" / "b" / "c")); }
+  EXPECT_FALSE(fs::exists(root / "a"));  // every level it made, innermost first
+  {
+    CreatedDirectory made((root / "kept" / "store").string());
+    made.keep();
+  }
+  EXPECT_TRUE(fs::is_directory(root / "kept" / "store"));
+  fs::remove_all(root);
+}
+
+TEST(CreatedDirectory, LeavesExistingAndNonEmptyFoldersAlone) {
+  const fs::path root = test::temp_dir("created_dir_existing");
+  fs::create_directories(root / "old");
+  { CreatedDirectory existing((root / "old").string()); }
+  EXPECT_TRUE(fs::is_directory(root / "old"));
+  {
+    CreatedDirectory made((root / "new" / "store").string());
+    std::ofstream(root / "new" / "file") << "x";  // written beside the store: "new" is not empty
+  }
+  EXPECT_FALSE(fs::exists(root / "new" / "store"));
+  EXPECT_TRUE(fs::exists(root / "new" / "file"));
+  fs::remove_all(root);
+}
+
+TEST(CreatedDirectory, AFileInTheWayIsAnOutputError) {
+  const fs::path root = test::temp_dir("created_dir_file");
+  std::ofstream(root / "plain") << "x";
+  EXPECT_THROW(CreatedDirectory((root / "plain").string()), OutputError);
+  EXPECT_THROW(CreatedDirectory((root / "plain" / "store").string()), OutputError);
+  EXPECT_TRUE(fs::is_regular_file(root / "plain"));
+  fs::remove_all(root);
+}
+
 }  // namespace
 }  // namespace streamcvd

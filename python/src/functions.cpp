@@ -111,7 +111,7 @@ struct RemeshRun {
   double t0 = now();
   IoCounters io0 = read_io_counters();
 
-  RemeshRun(PipelineOptions& options, int threads) : limit(thread_limit(threads)) {
+  RemeshRun(PipelineOptions& options, const RemeshArgs& args) : control(args.progress), limit(thread_limit(args.threads)) {
     options.progress = control.callback();
     control.io_log.start();
   }
@@ -213,7 +213,7 @@ Result remesh_arrays(py::handle points, py::handle faces, const RemeshArgs& args
   const InputMesh mesh = input_mesh(points, faces, args.attributes);
   PipelineOptions options = pipeline_options(args);
   options.attributes = mesh.attributes.empty() ? ReadOptions::Attributes::None : ReadOptions::Attributes::All;
-  RemeshRun run(options, args.threads);
+  RemeshRun run(options, args);
   PipelineResult r = run_interruptible(run.control, [&] {
     return remesh_stream([&](MeshSink& sink) { mesh.stream(sink, run.control.cancel); }, kArraysName, options);
   });
@@ -228,7 +228,7 @@ Result remesh_file(const std::string& input, const std::string& output, const Re
   options.keep_work = keep_work;
   format_from_path(output);  // an unknown output extension is refused before the work
   const std::string report_file = optional_path(report_path);
-  RemeshRun run(options, args.threads);
+  RemeshRun run(options, args);
   double write_seconds = 0;
   PipelineResult r = run_interruptible(run.control, [&] {
     PipelineResult result = remesh_path(input, options);
@@ -270,14 +270,14 @@ void write(const std::string& path, py::handle points, py::handle faces, py::han
 }
 
 py::object ingest(const std::string& input, const std::string& store, py::object memory, py::object work_dir,
-                  int threads, uint64_t faces_per_chunk) {
+                  int threads, uint64_t faces_per_chunk, py::object progress) {
   StoreBuildOptions options;
   options.memory_limit = memory_bytes(memory);
   options.work_directory = optional_path(work_dir);
   if (faces_per_chunk == 0) throw py::value_error("faces_per_chunk: expected at least 1");
   options.faces_per_chunk = faces_per_chunk;
   const auto limit = thread_limit(threads);
-  JobControl control;
+  JobControl control(std::move(progress));
   const nlohmann::json j = run_interruptible(control, [&] {
     const double t0 = now();
     StoreBuildReport report;

@@ -52,6 +52,7 @@ struct RemeshArgs {
   py::object subdivide = py::str("auto");
   bool project = true, optimize = true;
   py::object work_dir = py::none();
+  py::object progress = py::none();  ///< None or a callable taking one dict per progress report
 };
 
 Result remesh_arrays(py::handle points, py::handle faces, const RemeshArgs& args);
@@ -61,7 +62,7 @@ Mesh read(const std::string& path, py::handle attributes);
 void write(const std::string& path, py::handle points, py::handle faces, py::handle attributes, py::handle types,
            bool ascii, const std::string& comment);
 py::object ingest(const std::string& input, const std::string& store, py::object memory, py::object work_dir,
-                  int threads, uint64_t faces_per_chunk);
+                  int threads, uint64_t faces_per_chunk, py::object progress);
 py::object quality(py::handle points, py::handle faces);
 py::object info(py::handle mesh, py::handle faces, py::object memory, py::object work_dir, int threads);
 py::object distance(py::handle a, py::handle b, uint64_t samples, uint64_t seed, int threads);

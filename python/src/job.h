@@ -22,11 +22,20 @@
 namespace streamcvd::python {
 
 /// The cancel flag of one job and the progress callback that obeys it (feeding `io_log`, the
-/// report's io.stages, too).
+/// report's io.stages, too, and the caller's `progress` callable if any).
 struct JobControl {
   std::atomic<bool> cancel{false};
   StageIoLog io_log;
   std::mutex io_mutex;  // reports may come from the reading and the building thread at once
+  py::object progress = py::none();  ///< the caller's progress=: called with a dict per report
+  std::optional<py::error_already_set> progress_error;  ///< what it raised: re-raised by the caller
+
+  /// `progress` (None or a callable) checked and kept for callback().
+  explicit JobControl(py::object progress_callable = py::none()) : progress(std::move(progress_callable)) {
+    if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
+      throw py::type_error("progress: expected None or a callable taking one dict, got " +
+                           std::string(py::str(progress.get_type())));
+  }
 
   ProgressCallback callback() {
     return [this](const StageProgress& p) {
@@ -35,12 +44,40 @@ struct JobControl {
         io_log.see(p);
       }
       if (cancel.load(std::memory_order_relaxed)) throw Cancelled{};
+      if (!progress.is_none()) call_progress(p);
     };
+  }
+
+ private:
+  // Runs the caller's callable under the GIL (the calling thread waits without it); an
+  // exception it raises cancels the job and is raised again by run_interruptible.
+  void call_progress(const StageProgress& p) {
+    py::gil_scoped_acquire gil;
+    // Checked again with the GIL: a Ctrl-C handled while this thread waited for it has set the
+    // flag, and the callable must not see a report of the job it stopped.
+    if (cancel.load(std::memory_order_relaxed)) throw Cancelled{};
+    try {
+      py::dict d;
+      d["stage"] = p.stage;
+      d["done"] = p.done;
+      d["total"] = p.total;
+      d["unit"] = p.unit;
+      d["round"] = p.round;
+      if (p.fraction >= 0) d["fraction"] = p.fraction;
+      else if (p.total > 0) d["fraction"] = double(p.done) / double(p.total);
+      else d["fraction"] = py::none();  // a size not known up front (a pipe, an OBJ)
+      d["finished"] = p.finished;
+      progress(d);
+    } catch (py::error_already_set& e) {
+      if (!progress_error) progress_error.emplace(std::move(e));
+      cancel = true;
+      throw Cancelled{};
+    }
   }
 };
 
 /// Runs `work()` on a worker thread without the GIL and returns its result, or rethrows its
-/// exception. Every 20 ms the calling thread checks for signals (PyErr_CheckSignals, so Ctrl-C
+/// exception (or what the progress callable raised). Every 20 ms the calling thread checks for signals (PyErr_CheckSignals, so Ctrl-C
 /// and Python signal handlers work during the job): on one, it sets control.cancel, waits for
 /// the job to unwind and raises the signal's exception (KeyboardInterrupt).
 template <class Work>
@@ -79,6 +116,7 @@ auto run_interruptible(JobControl& control, Work&& work) -> decltype(work()) {
     worker.join();
   }
   if (interrupted) throw py::error_already_set();
+  if (control.progress_error) throw std::move(*control.progress_error);
   if (error) std::rethrow_exception(error);
   return std::move(*result);
 }

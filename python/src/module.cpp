@@ -23,18 +23,18 @@ auto remesh_keywords() {
                          py::arg("attributes") = py::none(), py::arg("algorithm") = d.algorithm,
                          py::arg("curvature_rings") = d.curvature_rings, py::arg("qem_threshold") = d.qem_threshold,
                          py::arg("subdivide") = "auto", py::arg("project") = d.project, py::arg("optimize") = d.optimize,
-                         py::arg("work_dir") = py::none());
+                         py::arg("work_dir") = py::none(), py::arg("progress") = py::none());
 }
 
 #define STREAMCVD_REMESH_PARAMS                                                                                      \
   py::object n, const std::string &metric, double gradation, uint64_t seed, int threads, bool deterministic,        \
       const std::string &small_components, bool boundary_strips, py::object memory, py::object attributes,          \
       const std::string &algorithm, int curvature_rings, double qem_threshold, py::object subdivide, bool project, \
-      bool optimize, py::object work_dir
+      bool optimize, py::object work_dir, py::object progress
 #define STREAMCVD_REMESH_ARGS                                                                                         \
   RemeshArgs {                                                                                                        \
     n, metric, gradation, seed, threads, deterministic, small_components, boundary_strips, memory, attributes,        \
-        algorithm, curvature_rings, qem_threshold, subdivide, project, optimize, work_dir                             \
+        algorithm, curvature_rings, qem_threshold, subdivide, project, optimize, work_dir, progress                   \
   }
 
 constexpr const char* kRemeshOptionsDoc = R"(
@@ -60,6 +60,10 @@ constexpr const char* kRemeshOptionsDoc = R"(
     project: output vertices on the input surface (False: raw cluster centroids).
     optimize: the quality post-pass (flips, relaxation, strip shaping).
     work_dir: folder of the work files (default: TMPDIR), anonymous and removed whatever happens.
+    progress: None or a callable given one dict per report, at most ~10 a second per stage and
+        once when a stage ends: {"stage": "read" | "clustering" | ..., "done", "total" (0 if
+        unknown), "unit", "round", "fraction" (0-1, None if unknown), "finished"}. It runs on
+        a worker thread holding the GIL; an exception it raises stops the job and is raised.
 )";
 
 }  // namespace
@@ -169,13 +173,15 @@ PYBIND11_MODULE(_core, m) {
   m.def(
       "ingest",
       [](py::object input, py::object store, py::object memory, py::object work_dir, int threads,
-         uint64_t faces_per_chunk) {
-        return ingest(path_text(input), path_text(store), memory, work_dir, threads, faces_per_chunk);
+         uint64_t faces_per_chunk, py::object progress) {
+        return ingest(path_text(input), path_text(store), memory, work_dir, threads, faces_per_chunk, progress);
       },
       py::arg("input"), py::arg("store"), py::kw_only(), py::arg("memory") = py::none(),
       py::arg("work_dir") = py::none(), py::arg("threads") = 0, py::arg("faces_per_chunk") = uint64_t(1) << 20,
+      py::arg("progress") = py::none(),
       R"(Builds the compact store of a mesh file in the directory `store`, in bounded memory (memory=
-    as in remesh()); returns the dict of `streamcvd ingest --json` (bytes, counts, seconds).)");
+    and progress= as in remesh()); returns the dict of `streamcvd ingest --json` (bytes, counts,
+    seconds).)");
   m.def("quality", &quality, py::arg("points"), py::arg("faces") = py::none(),
         R"(Triangle quality of a mesh: the dict of `streamcvd quality --json` (without "file").
 

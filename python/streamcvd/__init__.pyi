@@ -1,6 +1,6 @@
 # Type hints of the streamcvd package (the extension streamcvd._core); docstrings: help(streamcvd.remesh).
 import os
-from typing import Any, Literal, Sequence, Union
+from typing import Any, Callable, Literal, Sequence, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -12,6 +12,7 @@ PathLike = Union[str, os.PathLike[str]]
 Memory = Union[None, int, str]  # None (default limit), bytes, or "512M"
 Metric = Literal["I", "IQ", "A", "AQ"]
 MeshLike = Union["Mesh", tuple[npt.ArrayLike, npt.ArrayLike]]
+Progress = Callable[[dict[str, Any]], object] | None  # called with {"stage", "done", "total", "unit", "round", "fraction", "finished"}
 
 class InputError(ValueError): ...
 class OutputError(OSError): ...
@@ -52,6 +53,7 @@ def remesh(
     project: bool = True,
     optimize: bool = True,
     work_dir: PathLike | None = None,
+    progress: Progress = None,
 ) -> Result: ...
 
 def remesh_file(
@@ -75,6 +77,7 @@ def remesh_file(
     project: bool = True,
     optimize: bool = True,
     work_dir: PathLike | None = None,
+    progress: Progress = None,
     report: PathLike | None = None,
     keep_work: bool = False,
     ascii: bool = False,
@@ -93,7 +96,7 @@ def write(
 ) -> None: ...
 def ingest(
     input: PathLike, store: PathLike, *, memory: Memory = None, work_dir: PathLike | None = None,
-    threads: int = 0, faces_per_chunk: int = 1048576,
+    threads: int = 0, faces_per_chunk: int = 1048576, progress: Progress = None,
 ) -> dict[str, Any]: ...
 def quality(points: Union[npt.ArrayLike, Mesh], faces: npt.ArrayLike | None = None) -> dict[str, Any]: ...
 def info(

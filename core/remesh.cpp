@@ -1,15 +1,15 @@
-#include "core/remesh.h"
+#include "streamcvd/core/remesh.h"
 
-#include "core/bvh.h"
-#include "core/curvature.h"
-#include "core/dual_topology.h"
-#include "core/metric_field.h"
-#include "core/placement.h"
-#include "core/errors.h"
-#include "core/flat_faces.h"
-#include "core/strip_shape.h"
-#include "core/lloyd.h"
-#include "core/repair.h"
+#include "streamcvd/core/mesh/bvh.h"
+#include "streamcvd/core/fields/curvature.h"
+#include "streamcvd/core/dual/dual_topology.h"
+#include "streamcvd/core/fields/metric_field.h"
+#include "streamcvd/core/dual/placement.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/mesh/flat_faces.h"
+#include "streamcvd/core/dual/strip_shape.h"
+#include "streamcvd/core/clustering/lloyd.h"
+#include "streamcvd/core/dual/repair.h"
 
 #include <algorithm>
 #include <array>

@@ -6,15 +6,15 @@
 #include <string>
 #include <vector>
 
-#include "core/clustering.h"
-#include "core/component_topology.h"
-#include "core/dual_mesh.h"
-#include "core/large_array.h"
-#include "core/mesh_buffers.h"
-#include "core/mesh_optimize.h"
-#include "core/mesh_view.h"
-#include "core/progress.h"
-#include "core/vertex_attributes.h"
+#include "streamcvd/core/clustering/clustering.h"
+#include "streamcvd/core/mesh/component_topology.h"
+#include "streamcvd/core/dual/dual_mesh.h"
+#include "streamcvd/core/mesh/large_array.h"
+#include "streamcvd/core/mesh/mesh_buffers.h"
+#include "streamcvd/core/dual/mesh_optimize.h"
+#include "streamcvd/core/mesh/mesh_view.h"
+#include "streamcvd/core/mesh/progress.h"
+#include "streamcvd/core/mesh/vertex_attributes.h"
 
 namespace streamcvd {
 
@@ -38,7 +38,7 @@ struct RemeshOptions {
   /// Rings of the curvature fit (gradation, A, AQ): 3 as in the paper; noisy scans want more
   /// (8 keeps k1, k2 within 10 % on a sphere with 1 % noise).
   int curvature_rings = 3;
-  /// Quality post-pass on the output (core/mesh_optimize.h): flips between nearly coplanar
+  /// Quality post-pass on the output (core/dual/mesh_optimize.h): flips between nearly coplanar
   /// triangles and tangential relaxation of vertices off features, re-projected onto the input.
   bool optimize_quality = true;
   MeshOptimizeOptions optimize;
@@ -47,9 +47,9 @@ struct RemeshOptions {
   /// mesh turns this off, so nothing V-sized outlives the clustering.
   bool keep_vertex_labels = true;
   /// Per-vertex values (colours, scalars) carried to the output as area-weighted cluster means
-  /// (core/vertex_attributes.h); empty: none.
+  /// (core/mesh/vertex_attributes.h); empty: none.
   VertexAttributeColumns attributes;
-  /// Stage by stage progress (core/progress.h): each stage's start and end, the chunks it has
+  /// Stage by stage progress (core/mesh/progress.h): each stage's start and end, the chunks it has
   /// visited, the clustering's loops. Empty = none, and no cost.
   ProgressCallback progress;
 };
@@ -87,13 +87,13 @@ struct RemeshResult {
   uint64_t defect_vertices = 0;      ///< output vertices still on a defect at the end (0 = valid)
   uint64_t defect_faces_removed = 0;   ///< faces deleted by the last-resort cleanup (holes opened)
   uint64_t defect_vertices_removed = 0;  ///< vertices deleted with them (output has fewer than N)
-  uint64_t flat_faces_removed = 0;   ///< zero-area faces dropped along the boundary (core/flat_faces.h)
+  uint64_t flat_faces_removed = 0;   ///< zero-area faces dropped along the boundary (core/mesh/flat_faces.h)
   uint64_t flat_face_flips = 0;      ///< zero-area faces removed by an edge flip or a few-ulp vertex move
   uint64_t duplicate_faces_removed = 0;
   uint64_t boundary_vertices_added = 0;
   uint64_t holes_closed = 0;
   uint64_t quality_flips = 0, quality_moves = 0;  ///< edits of the quality post-pass
-  uint64_t strip_moves = 0;  ///< strip and strip-adjacent vertex moves of the quality pass (core/strip_shape.h)
+  uint64_t strip_moves = 0;  ///< strip and strip-adjacent vertex moves of the quality pass (core/dual/strip_shape.h)
   /// Faces with a corner at a boundary-strip vertex: count, Qmin, Qav (and the others' Qav).
   uint64_t strip_faces = 0;
   double strip_q_min = 0, strip_q_avg = 0, other_q_avg = 0;
@@ -110,9 +110,9 @@ struct RemeshResult {
 /// AQ; §V). The output vertex of each cluster is its site: the centroid projected onto the
 /// surface (I, A) or the QEM point (IQ, AQ); strips add vertices along boundaries. Checks the dual for
 /// non-manifold edges/vertices, isolated vertices and duplicate faces, and repairs the
-/// clustering around each defect (core/repair.h, up to repair_rounds). Deterministic for a seed with
+/// clustering around each defect (core/dual/repair.h, up to repair_rounds). Deterministic for a seed with
 /// clustering.threads = 1 (default) or clustering.deterministic (any thread count); otherwise
-/// the parallel clustering may differ between runs (core/parallel_clustering.h).
+/// the parallel clustering may differ between runs (core/clustering/parallel_clustering.h).
 /// Arrays sized by the input come from `storage` (RAM, or the pipeline's work files).
 RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArrayStorage& storage = ram_storage());
 

@@ -21,12 +21,12 @@
 #include <string_view>
 #include <vector>
 
-#include "core/errors.h"
-#include "core/mesh_stats.h"
-#include "streaming/mesh_io.h"
-#include "streaming/mesh_reader.h"
-#include "streaming/store.h"
-#include "streaming/store_clean.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/io/mesh_reader.h"
+#include "streamcvd/streaming/store/store.h"
+#include "streamcvd/streaming/store/store_clean.h"
 
 namespace streamcvd::fuzz {
 
@@ -234,7 +234,7 @@ inline void run_mesh_input(const uint8_t* data, size_t size, const char* extensi
     options.clean_topology = false;
     MeshStore store = MeshStore::build(mesh.view(), options);
     if (store.view().vertex_count() != mesh.vertex_count()) std::abort();
-    // The topology cleaning of that store (streaming/store_clean.h): it adds one vertex per
+    // The topology cleaning of that store (streaming/store/store_clean.h): it adds one vertex per
     // extra fan and drops faces, never vertices.
     StoreBuildReport report;
     MeshStore cleaned = clean_store_topology(std::move(store), options, report, {});

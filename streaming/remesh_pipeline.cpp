@@ -1,4 +1,4 @@
-#include "streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
 
 #include <unistd.h>
 
@@ -8,12 +8,12 @@
 #include <filesystem>
 #include <optional>
 
-#include "core/errors.h"
-#include "core/store_stats.h"
-#include "core/subdivide.h"
-#include "streaming/mesh_io.h"
-#include "streaming/subdivision_stream.h"
-#include "streaming/work_space.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/store_stats.h"
+#include "streamcvd/core/mesh/subdivide.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/subdivision_stream.h"
+#include "streamcvd/streaming/schedule/work_space.h"
 
 namespace streamcvd {
 

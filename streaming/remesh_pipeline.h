@@ -9,10 +9,10 @@
 #include <string>
 #include <vector>
 
-#include "core/mesh_stats.h"
-#include "core/remesh.h"
-#include "streaming/chunk_scheduler.h"
-#include "streaming/store.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/streaming/schedule/chunk_scheduler.h"
+#include "streamcvd/streaming/store/store.h"
 
 namespace streamcvd {
 
@@ -28,7 +28,7 @@ struct PipelineOptions {
   /// A file input's store is written as a named store in the work folder and kept, so that a
   /// rerun can start from it (`remesh STORE`).
   bool keep_work = false;
-  /// Progress (core/progress.h) of the store's opening or build ("open", "ingest" and the
+  /// Progress (core/mesh/progress.h) of the store's opening or build ("open", "ingest" and the
   /// build's own stages), of "subdivide" and of the remesh stages. Empty = none.
   ProgressCallback progress;
   /// Vertex attributes carried to the output as area-weighted cluster means: all the input has

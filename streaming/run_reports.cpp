@@ -1,11 +1,11 @@
-#include "streaming/run_reports.h"
+#include "streamcvd/streaming/run_reports.h"
 
 #include <algorithm>
 
-#include "core/cluster_energy.h"
-#include "core/parallel_clustering.h"
-#include "core/store_stats.h"
-#include "streaming/mesh_io.h"
+#include "streamcvd/core/clustering/cluster_energy.h"
+#include "streamcvd/core/clustering/parallel_clustering.h"
+#include "streamcvd/core/measure/store_stats.h"
+#include "streamcvd/streaming/io/mesh_io.h"
 
 namespace streamcvd {
 
@@ -253,7 +253,7 @@ nlohmann::json guarantee_checks(const PipelineResult& r, uint32_t requested, boo
   j["input_components_with_clusters"] = rm.components.input_components;
   j["output_components"] = rm.components.output_components;
   if (!components_ok) j["component_problems"] = rm.components.problems;
-  // Against the input as cleaned (its sheets and their boundaries, streaming/store_clean.h): a
+  // Against the input as cleaned (its sheets and their boundaries, streaming/store/store_clean.h): a
   // hole below the output resolution may close, none may open; no piece may come apart.
   const bool holes_ok = out.boundary_loops <= rm.components.input_boundary_loops;
   const bool pieces_ok = out.components <= rm.components.input_components;

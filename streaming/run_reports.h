@@ -9,13 +9,13 @@
 #include <utility>
 #include <vector>
 
-#include "core/mesh_stats.h"
-#include "core/progress.h"
-#include "core/surface_distance.h"
-#include "streaming/memory_budget.h"
-#include "streaming/remesh_pipeline.h"
-#include "streaming/store.h"
-#include "streaming/store_build.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/mesh/progress.h"
+#include "streamcvd/core/measure/surface_distance.h"
+#include "streamcvd/streaming/schedule/memory_budget.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/store/store.h"
+#include "streamcvd/streaming/store/store_build.h"
 
 namespace streamcvd {
 
@@ -23,7 +23,7 @@ namespace streamcvd {
 nlohmann::json topology_json(const TopologyStats& s);
 /// Q, angle, valence and edge-length figures of `quality --json` and of the remesh report.
 nlohmann::json quality_json(const QualityStats& q);
-/// What the store build's topology cleaning did (streaming/store_clean.h): the input's defects as
+/// What the store build's topology cleaning did (streaming/store/store_clean.h): the input's defects as
 /// read, what was dropped and cut, the figures of the cleaned mesh.
 nlohmann::json cleaning_json(const StoreBuildReport& build);
 /// {"a_to_b": {max, mean, rms, samples, *_relative}, "b_to_a": ..., "hausdorff",

@@ -1,4 +1,4 @@
-#include "core/adjacency.h"
+#include "streamcvd/streaming/store/adjacency.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -9,7 +9,7 @@
 #include <set>
 #include <vector>
 
-#include "core/mesh_view.h"
+#include "streamcvd/core/mesh/mesh_view.h"
 
 namespace streamcvd {
 namespace {

@@ -1,4 +1,4 @@
-// Vertex attributes in the writers (streaming/mesh_io.h: PLY properties with their names and
+// Vertex attributes in the writers (streaming/io/mesh_io.h: PLY properties with their names and
 // types, integers rounded and clamped; OBJ "v x y z r g b"; none in OFF and STL) and through the
 // streamed subdivision (midpoints get their edge's mean).
 #include <gtest/gtest.h>
@@ -12,10 +12,10 @@
 #include <string>
 #include <vector>
 
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
-#include "streaming/subdivision_stream.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
+#include "streamcvd/streaming/store/subdivision_stream.h"
 #include "tests/cli_runner.h"
 #include "tests/test_util.h"
 

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "streaming/output_file.h"
+#include "streamcvd/streaming/io/output_file.h"
 #include "tests/cli_runner.h"
 #include "tests/test_util.h"
 

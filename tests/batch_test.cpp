@@ -17,7 +17,7 @@
 #include <thread>
 #include <vector>
 
-#include "streaming/store.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/cli_runner.h"
 #include "tests/test_util.h"
 

@@ -6,9 +6,9 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/png_writer.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/io/png_writer.h"
 #include "tests/cli_runner.h"
 #include "tests/test_util.h"
 

@@ -1,17 +1,17 @@
-// The chunk scheduler (streaming/chunk_scheduler.h): visits counted per stage, chunks read ahead
+// The chunk scheduler (streaming/schedule/chunk_scheduler.h): visits counted per stage, chunks read ahead
 // once while resident and released past the budget, and the remesh of a mapped store visited
 // through it identical to the remesh of the same store in RAM.
-#include "streaming/chunk_scheduler.h"
+#include "streamcvd/streaming/schedule/chunk_scheduler.h"
 
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <string>
 
-#include "core/remesh.h"
-#include "streaming/mesh_io.h"
-#include "streaming/remesh_pipeline.h"
-#include "streaming/store.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

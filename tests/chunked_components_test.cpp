@@ -1,6 +1,6 @@
 // core/chunked_components: pieces inside ranges, their merge across frontiers, labels, and the
 // checks that catch one-sided joins; against a plain union-find over all vertices.
-#include "core/chunked_components.h"
+#include "streamcvd/core/mesh/chunked_components.h"
 
 #include <gtest/gtest.h>
 
@@ -10,8 +10,8 @@
 #include <random>
 #include <stdexcept>
 
-#include "core/shapes.h"
-#include "streaming/store.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/store/store.h"
 
 namespace streamcvd {
 namespace {

@@ -1,7 +1,7 @@
-// Tests of core/cluster_energy.h: the O(1) move test of every metric equals the difference of
+// Tests of core/clustering/cluster_energy.h: the O(1) move test of every metric equals the difference of
 // the full energies (eqs. 12-18), the incremental accumulators equal a fresh rebuild, and the
 // QEM sites stay within their clusters.
-#include "core/cluster_energy.h"
+#include "streamcvd/core/clustering/cluster_energy.h"
 
 #include <gtest/gtest.h>
 
@@ -9,10 +9,10 @@
 #include <random>
 #include <vector>
 
-#include "core/clustering.h"
-#include "core/metric_field.h"
-#include "core/shapes.h"
-#include "streaming/store.h"
+#include "streamcvd/core/clustering/clustering.h"
+#include "streamcvd/core/fields/metric_field.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

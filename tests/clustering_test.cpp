@@ -1,7 +1,7 @@
-// Tests of core/clustering.h and core/item_data.h: item weights, component budget, initial
+// Tests of core/clustering/clustering.h and core/clustering/item_data.h: item weights, component budget, initial
 // sampling (§VI-G), Algorithm 1 energy descent (§VI-A), cleaning and the connectivity-
 // constrained pass (§VI-B).
-#include "core/clustering.h"
+#include "streamcvd/core/clustering/clustering.h"
 
 #include <gtest/gtest.h>
 
@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "core/item_data.h"
-#include "core/shapes.h"
-#include "streaming/store.h"
+#include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

@@ -1,7 +1,7 @@
-// Tests for core/curvature.h (suite Curvature) and the `curvature` subcommand (CurvatureCli):
+// Tests for core/fields/curvature.h (suite Curvature) and the `curvature` subcommand (CurvatureCli):
 // analytic surfaces with known principal curvatures and directions, noise, degenerate
 // neighbourhoods, thread-count and chunk-size invariance, and every shared test mesh.
-#include "core/curvature.h"
+#include "streamcvd/core/fields/curvature.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -14,10 +14,10 @@
 #include <random>
 #include <sstream>
 
-#include "core/errors.h"
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/cli_runner.h"
 #include "tests/test_util.h"
 

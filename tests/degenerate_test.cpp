@@ -11,11 +11,11 @@
 #include <string>
 #include <vector>
 
-#include "core/errors.h"
-#include "core/mesh_stats.h"
-#include "core/shapes.h"
-#include "streaming/remesh_pipeline.h"
-#include "streaming/store.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/store/store.h"
 
 namespace streamcvd {
 namespace {

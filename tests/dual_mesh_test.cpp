@@ -1,6 +1,6 @@
-// Tests of core/dual_mesh.h: the dual of hand-built clusterings (§VI-C), boundary strips
+// Tests of core/dual/dual_mesh.h: the dual of hand-built clusterings (§VI-C), boundary strips
 // (§VI-D), the manifold-defect finder and the last-resort defect removal.
-#include "core/dual_mesh.h"
+#include "streamcvd/core/dual/dual_mesh.h"
 
 #include <gtest/gtest.h>
 
@@ -12,11 +12,11 @@
 #include <string>
 #include <vector>
 
-#include "core/clustering.h"
-#include "core/item_data.h"
-#include "core/mesh_stats.h"
-#include "core/shapes.h"
-#include "streaming/store.h"
+#include "streamcvd/core/clustering/clustering.h"
+#include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

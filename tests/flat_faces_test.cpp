@@ -1,17 +1,17 @@
-// Tests of the flat-face safety net (core/flat_faces.h): a flat face along the boundary whose
+// Tests of the flat-face safety net (core/mesh/flat_faces.h): a flat face along the boundary whose
 // middle vertex is interior is dropped, one across an interior edge is flipped away, one whose
 // middle vertex is on the boundary already is nudged; the result stays manifold, oriented and
 // keeps V and χ. On the dragon (seeds whose strips gave a flat face) the output has none.
-#include "core/flat_faces.h"
+#include "streamcvd/core/mesh/flat_faces.h"
 
 #include <gtest/gtest.h>
 
 #include <vector>
 
-#include "core/mesh_stats.h"
-#include "core/remesh.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {
@@ -80,7 +80,7 @@ TEST(FlatFaces, DragonSeedsWithCollinearStripsHaveNoFlatFace) {
   // At N = 20000 (metric I) seeds 10 and 15 gave one flat strip triangle each (dropped), seeds
   // 35 and 45 one (nudged), with the chunk-wise initial sampling (the global one had such
   // triangles at seeds 5 and 9, and at 3 and 12 under the former cap of 12 repair rounds). Since
-  // the strips are spaced like the clusters and shaped (core/strip_shape.h) the net acts once over
+  // the strips are spaced like the clusters and shaped (core/dual/strip_shape.h) the net acts once over
   // the four seeds (it may act on none): the output must still have no degenerate face.
   const auto path = test::shared_data_path("stanford_dragon_vrip.ply");
   if (!path) GTEST_SKIP() << "../shared/data absent";

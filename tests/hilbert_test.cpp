@@ -1,4 +1,4 @@
-#include "core/hilbert.h"
+#include "streamcvd/streaming/store/hilbert.h"
 
 #include <gtest/gtest.h>
 

@@ -16,9 +16,9 @@
 #include <thread>
 #include <vector>
 
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/cli_runner.h"
 #include "tests/test_util.h"
 

@@ -1,7 +1,7 @@
-// Tests of core/lloyd.h: the Lloyd baseline of paper §VII (Fig. 9) lowers the energy from the
+// Tests of core/clustering/lloyd.h: the Lloyd baseline of paper §VII (Fig. 9) lowers the energy from the
 // initial sampling, ends no lower than Algorithm 1 (the paper's observation), keeps every cluster
 // connected and non-empty, is deterministic, runs with IQ, and plugs into remesh().
-#include "core/lloyd.h"
+#include "streamcvd/core/clustering/lloyd.h"
 
 #include <gtest/gtest.h>
 
@@ -12,12 +12,12 @@
 #include <string>
 #include <vector>
 
-#include "core/item_data.h"
-#include "core/metric_field.h"
-#include "core/remesh.h"
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
+#include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/fields/metric_field.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/cli_runner.h"
 #include "tests/test_util.h"
 

@@ -1,8 +1,8 @@
-// Tests of the quality post-pass (core/mesh_optimize.h): flips between coplanar triangles only,
+// Tests of the quality post-pass (core/dual/mesh_optimize.h): flips between coplanar triangles only,
 // never a duplicate edge or a fold, fixed vertices stay, moved vertices land on the surface,
 // and on remeshed closed shapes the topology (closed manifold, genus) is kept while Qav rises.
-#include "core/mesh_optimize.h"
-#include "core/placement.h"
+#include "streamcvd/core/dual/mesh_optimize.h"
+#include "streamcvd/core/dual/placement.h"
 
 #include <gtest/gtest.h>
 
@@ -11,12 +11,12 @@
 #include <string>
 #include <vector>
 
-#include "core/errors.h"
-#include "core/mesh_stats.h"
-#include "core/remesh.h"
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

@@ -9,8 +9,8 @@
 #include <limits>
 #include <string>
 
-#include "core/errors.h"
-#include "streaming/mesh_io.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/streaming/io/mesh_io.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

@@ -1,6 +1,6 @@
 // compute_topology_stats / compute_quality: hand-built meshes with exact counts, procedural
 // shapes, and the MANIFEST figures of the bundled and shared test meshes.
-#include "core/mesh_stats.h"
+#include "streamcvd/core/measure/mesh_stats.h"
 
 #include <gtest/gtest.h>
 
@@ -12,9 +12,9 @@
 #include <random>
 #include <sstream>
 
-#include "core/errors.h"
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

@@ -17,11 +17,11 @@
 #include <thread>
 #include <vector>
 
-#include "core/errors.h"
-#include "core/shapes.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/shapes.h"
 #include "fuzz/fuzz_common.h"
-#include "streaming/mesh_io.h"
-#include "streaming/mesh_reader.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/io/mesh_reader.h"
 #include "tests/cli_runner.h"
 #include "tests/test_util.h"
 

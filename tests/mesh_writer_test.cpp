@@ -1,4 +1,4 @@
-// Tests for streaming/output_file.h (atomic output, signal cleanup) and write_mesh: exact round
+// Tests for streaming/io/output_file.h (atomic output, signal cleanup) and write_mesh: exact round
 // trips through every format, byte layouts, and failures that must leave no file behind.
 #include <gtest/gtest.h>
 #include <sys/resource.h>
@@ -13,11 +13,11 @@
 #include <sstream>
 #include <vector>
 
-#include "core/errors.h"
-#include "core/shapes.h"
-#include "streaming/input_stream.h"
-#include "streaming/mesh_io.h"
-#include "streaming/output_file.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/input_stream.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/io/output_file.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

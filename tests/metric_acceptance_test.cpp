@@ -15,17 +15,17 @@
 #include <tuple>
 #include <vector>
 
-#include "core/cluster_energy.h"
-#include "core/curvature.h"
-#include "core/item_data.h"
-#include "core/metric_field.h"
-#include "core/remesh.h"
-#include "core/shapes.h"
-#include "core/subdivide.h"
-#include "core/surface_distance.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
-#include "streaming/subdivision_stream.h"
+#include "streamcvd/core/clustering/cluster_energy.h"
+#include "streamcvd/core/fields/curvature.h"
+#include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/fields/metric_field.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/core/mesh/subdivide.h"
+#include "streamcvd/core/measure/surface_distance.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
+#include "streamcvd/streaming/store/subdivision_stream.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

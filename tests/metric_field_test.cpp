@@ -1,7 +1,7 @@
-// Tests for core/metric_field.h (suite MetricField): gradation density (eq. 20) with its clamp,
+// Tests for core/fields/metric_field.h (suite MetricField): gradation density (eq. 20) with its clamp,
 // anisotropic tensors (eqs. 21-22) with the isotropic blend on planes and cylinders, per-vertex
 // quadrics and the truncated QEM solve on planes, creases and corners, degenerate input.
-#include "core/metric_field.h"
+#include "streamcvd/core/fields/metric_field.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -12,9 +12,9 @@
 #include <cmath>
 #include <random>
 
-#include "core/errors.h"
-#include "core/shapes.h"
-#include "streaming/store.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/store/store.h"
 
 namespace streamcvd {
 namespace {

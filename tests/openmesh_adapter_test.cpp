@@ -1,7 +1,7 @@
 #include <gtest/gtest.h>
 
-#include "core/shapes.h"
-#include "streaming/openmesh_adapter.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/openmesh_adapter.h"
 
 namespace streamcvd {
 namespace {

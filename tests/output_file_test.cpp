@@ -1,6 +1,6 @@
 // AtomicOutputFile's page-cache bypass (write_direct) and split sync/commit. The basic
 // write/commit/patch behaviour is covered by the AtomicOutputFile suite in mesh_writer_test.cpp.
-#include "streaming/output_file.h"
+#include "streamcvd/streaming/io/output_file.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -13,8 +13,8 @@
 #include <iterator>
 #include <vector>
 
-#include "core/default_init_vector.h"
-#include "core/errors.h"
+#include "streamcvd/core/mesh/default_init_vector.h"
+#include "streamcvd/core/mesh/errors.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

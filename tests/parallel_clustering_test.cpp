@@ -1,9 +1,9 @@
-// Tests of the parallel clustering loop (core/parallel_clustering.h): same energy as the serial
+// Tests of the parallel clustering loop (core/clustering/parallel_clustering.h): same energy as the serial
 // loop, connected clusters, valid remeshing outputs, byte-identical deterministic mode for any
 // thread count, and a stress run over many small random configurations. The ThreadSanitizer
 // stage of tools/run_tests.sh runs this suite (ParallelClustering*).
-#include "core/parallel_clustering.h"
-#include "streaming/work_space.h"
+#include "streamcvd/core/clustering/parallel_clustering.h"
+#include "streamcvd/streaming/schedule/work_space.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -17,14 +17,14 @@
 #include <string>
 #include <vector>
 
-#include "core/clustering.h"
-#include "core/item_data.h"
-#include "core/mesh_stats.h"
-#include "core/metric_field.h"
-#include "core/remesh.h"
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
+#include "streamcvd/core/clustering/clustering.h"
+#include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/fields/metric_field.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {
@@ -33,7 +33,7 @@ namespace {
 #if defined(__SANITIZE_THREAD__)
 // ThreadSanitizer cannot see inside the uninstrumented libtbb: the other stages run TBB on one
 // thread (every test here sets kTbbThreads), and the clustering's regions run on std::threads
-// (core/parallel_blocks.h).
+// (core/mesh/parallel_blocks.h).
 constexpr bool kThreadSanitizer = true;
 constexpr uint32_t kTbbThreads = 1;
 #else

@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "core/errors.h"
-#include "streaming/mesh_io.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/streaming/io/mesh_io.h"
 #include "tests/ply_builder.h"
 #include "tests/test_util.h"
 

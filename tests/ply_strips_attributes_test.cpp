@@ -12,10 +12,10 @@
 #include <unordered_map>
 #include <vector>
 
-#include "core/errors.h"
-#include "core/shapes.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/shapes.h"
 #include "fuzz/fuzz_common.h"
-#include "streaming/mesh_reader.h"
+#include "streamcvd/streaming/io/mesh_reader.h"
 #include "tests/ply_builder.h"
 #include "tests/test_util.h"
 

@@ -1,7 +1,7 @@
-// The stage reporter (core/progress.h): chunks counted once all their vertices were visited,
+// The stage reporter (core/mesh/progress.h): chunks counted once all their vertices were visited,
 // passes and rounds, stages without visits reporting their time only, visits forwarded to the
 // view's own hooks, and the remesh reporting each of its stages in order, started and finished.
-#include "core/progress.h"
+#include "streamcvd/core/mesh/progress.h"
 
 #include <gtest/gtest.h>
 
@@ -11,9 +11,9 @@
 #include <thread>
 #include <vector>
 
-#include "core/remesh.h"
-#include "core/shapes.h"
-#include "streaming/store.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/store/store.h"
 
 namespace streamcvd {
 namespace {

@@ -1,12 +1,12 @@
-// Tests for core/qem_decimate.h (suite QemDecimate): the OpenMesh baseline of the benchmarks.
-#include "core/qem_decimate.h"
+// Tests for core/measure/qem_decimate.h (suite QemDecimate): the OpenMesh baseline of the benchmarks.
+#include "streamcvd/core/measure/qem_decimate.h"
 
 #include <gtest/gtest.h>
 
-#include "core/errors.h"
-#include "core/mesh_stats.h"
-#include "core/shapes.h"
-#include "core/surface_distance.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/core/measure/surface_distance.h"
 
 namespace streamcvd {
 namespace {

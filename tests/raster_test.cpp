@@ -1,5 +1,5 @@
-// Tests for core/raster.h and streaming/png_writer.h (suite Raster).
-#include "core/raster.h"
+// Tests for core/measure/raster.h and streaming/io/png_writer.h (suite Raster).
+#include "streamcvd/core/measure/raster.h"
 
 #include <gtest/gtest.h>
 
@@ -8,9 +8,9 @@
 #include <iterator>
 #include <limits>
 
-#include "core/errors.h"
-#include "core/shapes.h"
-#include "streaming/png_writer.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/png_writer.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

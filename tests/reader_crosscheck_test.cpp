@@ -24,9 +24,9 @@
 #include <string>
 #include <vector>
 
-#include "core/errors.h"
-#include "streaming/input_stream.h"
-#include "streaming/mesh_io.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/streaming/io/input_stream.h"
+#include "streamcvd/streaming/io/mesh_io.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

@@ -16,11 +16,11 @@
 #include <string>
 #include <vector>
 
-#include "core/shapes.h"
-#include "core/vertex_attributes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/remesh_pipeline.h"
-#include "streaming/store.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/core/mesh/vertex_attributes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/cli_runner.h"
 #include "tests/ply_builder.h"
 #include "tests/test_util.h"

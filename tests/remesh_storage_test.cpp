@@ -7,10 +7,10 @@
 #include <string>
 #include <vector>
 
-#include "core/remesh.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
-#include "streaming/work_space.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
+#include "streamcvd/streaming/schedule/work_space.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

@@ -6,12 +6,12 @@
 #include <filesystem>
 #include <string>
 
-#include "core/errors.h"
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/remesh_pipeline.h"
-#include "streaming/run_reports.h"
-#include "streaming/store_build.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/run_reports.h"
+#include "streamcvd/streaming/store/store_build.h"
 
 namespace streamcvd {
 namespace {

@@ -1,7 +1,7 @@
 // End-to-end tests of the isotropic remesher (core/remesh.h, streaming/remesh_pipeline.h):
 // closed manifold output with the input genus and exactly N vertices, sampling independence
 // (paper Fig. 5), determinism, small components, and robustness on open and dirty inputs.
-#include "core/remesh.h"
+#include "streamcvd/core/remesh.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -16,14 +16,14 @@
 #include <string>
 #include <vector>
 
-#include "core/dual_mesh.h"
-#include "core/errors.h"
-#include "core/item_data.h"
-#include "core/mesh_stats.h"
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/remesh_pipeline.h"
-#include "streaming/store.h"
+#include "streamcvd/core/dual/dual_mesh.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

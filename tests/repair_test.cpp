@@ -1,6 +1,6 @@
-// Tests of core/repair.h: the incremental repair loop finds the same defects as the global
+// Tests of core/dual/repair.h: the incremental repair loop finds the same defects as the global
 // finder on the built dual, and leaves a defect-free dual with connected clusters.
-#include "core/repair.h"
+#include "streamcvd/core/dual/repair.h"
 
 #include <gtest/gtest.h>
 
@@ -9,14 +9,14 @@
 #include <random>
 #include <vector>
 
-#include "core/clustering.h"
-#include "core/dual_mesh.h"
-#include "core/dual_topology.h"
-#include "core/item_data.h"
-#include "core/remesh.h"
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
+#include "streamcvd/core/clustering/clustering.h"
+#include "streamcvd/core/dual/dual_mesh.h"
+#include "streamcvd/core/dual/dual_topology.h"
+#include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

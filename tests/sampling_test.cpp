@@ -1,4 +1,4 @@
-// Tests of the chunk-wise component budget, initial sampling and absorption (core/sampling.cpp):
+// Tests of the chunk-wise component budget, initial sampling and absorption (core/clustering/sampling.cpp):
 // the budget of the former global implementation, exact cluster totals when components cross
 // many chunks, parts lighter than a cluster, connected clusters, and the same labels for any
 // thread count and any storage.
@@ -13,11 +13,11 @@
 #include <string>
 #include <vector>
 
-#include "core/clustering.h"
-#include "core/item_data.h"
-#include "core/shapes.h"
-#include "streaming/store.h"
-#include "streaming/work_space.h"
+#include "streamcvd/core/clustering/clustering.h"
+#include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/store/store.h"
+#include "streamcvd/streaming/schedule/work_space.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

@@ -1,12 +1,12 @@
-// Tests for core/shapes.h (suite Shapes): the procedural surfaces are closed, oriented outward,
+// Tests for core/measure/shapes.h (suite Shapes): the procedural surfaces are closed, oriented outward,
 // of the stated genus and size, and enclose the analytic volume.
-#include "core/shapes.h"
+#include "streamcvd/core/measure/shapes.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "core/mesh_stats.h"
+#include "streamcvd/core/measure/mesh_stats.h"
 
 namespace streamcvd {
 namespace {

@@ -1,4 +1,4 @@
-// The store build's topology cleaning (streaming/store_clean.h) on generated defective inputs
+// The store build's topology cleaning (streaming/store/store_clean.h) on generated defective inputs
 // with known answers: duplicated faces, a fin, two closed surfaces sharing an edge or a vertex,
 // a book of three sheets. Each is built (counts of what the cleaning did, a manifold result) and
 // remeshed through the CLI (exit 0, manifold output, holes ≤ the cleaned input's, the pieces
@@ -12,11 +12,11 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
-#include "core/shapes.h"
-#include "core/store_stats.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
-#include "streaming/store_build.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/core/measure/store_stats.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
+#include "streamcvd/streaming/store/store_build.h"
 #include "tests/cli_runner.h"
 #include "tests/test_util.h"
 

@@ -1,7 +1,7 @@
 // compute_topology_stats(MeshView): field by field equal to the soup version on the same mesh,
 // for the bundled meshes and generated ones, with stores cut into many chunks so that
 // components and boundary loops cross chunk frontiers; known figures where they are known.
-#include "core/store_stats.h"
+#include "streamcvd/core/measure/store_stats.h"
 
 #include <gtest/gtest.h>
 
@@ -10,10 +10,10 @@
 #include <limits>
 #include <random>
 
-#include "core/errors.h"
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/cli_runner.h"
 #include "tests/test_util.h"
 

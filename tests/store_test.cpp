@@ -1,4 +1,4 @@
-#include "streaming/store.h"
+#include "streamcvd/streaming/store/store.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -14,9 +14,9 @@
 #include <random>
 #include <set>
 
-#include "core/errors.h"
-#include "core/hilbert.h"
-#include "streaming/mesh_io.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/streaming/store/hilbert.h"
+#include "streamcvd/streaming/io/mesh_io.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {
@@ -37,7 +37,7 @@ MeshBuffers shuffled(const MeshBuffers& m, uint32_t seed) {
   return out;
 }
 
-// Reference flags from an edge map (independent of core/adjacency.cpp); fan checks excluded.
+// Reference flags from an edge map (independent of streaming/store/adjacency.cpp); fan checks excluded.
 std::vector<uint8_t> reference_edge_flags(const MeshView& m) {
   std::map<std::pair<uint32_t, uint32_t>, int> edges;
   for (uint64_t f = 0; f < m.face_count(); ++f) {

@@ -7,11 +7,11 @@
 #include <cstdint>
 #include <cstdio>
 
-#include "core/mesh_stats.h"
-#include "core/remesh.h"
-#include "streaming/mesh_io.h"
-#include "streaming/remesh_pipeline.h"
-#include "streaming/store.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

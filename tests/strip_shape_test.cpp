@@ -1,8 +1,8 @@
-// Tests of the boundary-strip shaping (core/strip_shape.h, and the strip spacing of
-// core/dual_mesh.h): on a sphere with jagged sub-resolution holes — what a scan's holes look like
+// Tests of the boundary-strip shaping (core/dual/strip_shape.h, and the strip spacing of
+// core/dual/dual_mesh.h): on a sphere with jagged sub-resolution holes — what a scan's holes look like
 // to the dual — the strip faces come out well shaped, the output boundary stays on the input
 // boundary, the vertex count stays N, and the result does not depend on the thread count.
-#include "core/strip_shape.h"
+#include "streamcvd/core/dual/strip_shape.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -13,10 +13,10 @@
 #include <cstdio>
 #include <vector>
 
-#include "core/mesh_stats.h"
-#include "core/remesh.h"
-#include "core/shapes.h"
-#include "streaming/store.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/remesh.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/store/store.h"
 
 namespace streamcvd {
 namespace {

@@ -1,6 +1,6 @@
-// Tests of core/subdivide.h (linear 1→4 subdivision, §VI-F) and of the pipeline's use of it
+// Tests of core/mesh/subdivide.h (linear 1→4 subdivision, §VI-F) and of the pipeline's use of it
 // when N approaches the input vertex count.
-#include "core/subdivide.h"
+#include "streamcvd/core/mesh/subdivide.h"
 
 #include <gtest/gtest.h>
 
@@ -13,11 +13,11 @@
 #include <utility>
 #include <vector>
 
-#include "core/mesh_stats.h"
-#include "core/shapes.h"
-#include "streaming/remesh_pipeline.h"
-#include "streaming/store.h"
-#include "streaming/subdivision_stream.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/store/store.h"
+#include "streamcvd/streaming/store/subdivision_stream.h"
 
 namespace streamcvd {
 namespace {

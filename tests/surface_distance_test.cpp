@@ -1,5 +1,5 @@
-// Tests for core/bvh.h (suite SurfaceDistanceBvh) and core/surface_distance.h (SurfaceDistance).
-#include "core/surface_distance.h"
+// Tests for core/mesh/bvh.h (suite SurfaceDistanceBvh) and core/measure/surface_distance.h (SurfaceDistance).
+#include "streamcvd/core/measure/surface_distance.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -10,9 +10,9 @@
 #include <cstring>
 #include <random>
 
-#include "core/bvh.h"
-#include "core/errors.h"
-#include "core/shapes.h"
+#include "streamcvd/core/mesh/bvh.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/shapes.h"
 
 namespace streamcvd {
 namespace {

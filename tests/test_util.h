@@ -7,11 +7,11 @@
 #include <string>
 #include <vector>
 
-#include "core/large_array.h"
+#include "streamcvd/core/mesh/large_array.h"
 
-#include "core/shapes.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
 
 namespace streamcvd::test {
 

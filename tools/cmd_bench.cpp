@@ -29,17 +29,17 @@
 #include <set>
 #include <thread>
 
-#include "core/errors.h"
-#include "core/mesh_stats.h"
-#include "core/qem_decimate.h"
-#include "core/raster.h"
-#include "streaming/mesh_io.h"
-#include "streaming/output_file.h"
-#include "streaming/png_writer.h"
-#include "streaming/remesh_pipeline.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/measure/qem_decimate.h"
+#include "streamcvd/core/measure/raster.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/io/output_file.h"
+#include "streamcvd/streaming/io/png_writer.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
 #include "tools/bench.h"
 #include "tools/commands.h"
-#include "streaming/run_reports.h"
+#include "streamcvd/streaming/run_reports.h"
 #include "tools/measure.h"
 
 namespace streamcvd::cli {

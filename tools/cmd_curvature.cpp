@@ -1,4 +1,4 @@
-// `curvature`: principal curvatures and directions of every vertex (core/curvature.h), written
+// `curvature`: principal curvatures and directions of every vertex (core/fields/curvature.h), written
 // as a PLY whose vertices carry x y z k1 k2 d1x d1y d1z d2x d2y d2z, followed by the faces.
 // Vertices and faces are in store order (Hilbert-sorted when the input is a mesh file).
 #include <tbb/global_control.h>
@@ -11,11 +11,11 @@
 #include <memory>
 #include <string>
 
-#include "core/curvature.h"
-#include "core/errors.h"
-#include "streaming/mesh_io.h"
-#include "streaming/output_file.h"
-#include "streaming/store.h"
+#include "streamcvd/core/fields/curvature.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/io/output_file.h"
+#include "streamcvd/streaming/store/store.h"
 #include "tools/commands.h"
 #include "tools/job_options.h"
 

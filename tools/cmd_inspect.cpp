@@ -4,16 +4,16 @@
 #include <memory>
 #include <optional>
 
-#include "core/errors.h"
-#include "core/mesh_stats.h"
-#include "core/shapes.h"
-#include "core/store_stats.h"
-#include "streaming/mesh_io.h"
-#include "streaming/store.h"
-#include "streaming/memory_budget.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/core/measure/store_stats.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/store/store.h"
+#include "streamcvd/streaming/schedule/memory_budget.h"
 #include "tools/commands.h"
 #include "tools/job_options.h"
-#include "streaming/run_reports.h"
+#include "streamcvd/streaming/run_reports.h"
 #include "tools/measure.h"
 
 namespace streamcvd::cli {

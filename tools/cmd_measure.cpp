@@ -4,15 +4,15 @@
 #include <memory>
 #include <string_view>
 
-#include "core/errors.h"
-#include "core/raster.h"
-#include "core/surface_distance.h"
-#include "streaming/mesh_io.h"
-#include "streaming/output_file.h"
-#include "streaming/png_writer.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/raster.h"
+#include "streamcvd/core/measure/surface_distance.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/io/output_file.h"
+#include "streamcvd/streaming/io/png_writer.h"
 #include "tools/commands.h"
 #include "tools/job_options.h"
-#include "streaming/run_reports.h"
+#include "streamcvd/streaming/run_reports.h"
 #include "tools/measure.h"
 
 namespace streamcvd::cli {

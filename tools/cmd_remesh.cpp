@@ -7,13 +7,13 @@
 #include <memory>
 #include <string>
 
-#include "core/errors.h"
-#include "streaming/mesh_io.h"
-#include "streaming/output_file.h"
-#include "core/parallel_clustering.h"
-#include "streaming/remesh_pipeline.h"
-#include "streaming/run_reports.h"
-#include "streaming/memory_budget.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/io/output_file.h"
+#include "streamcvd/core/clustering/parallel_clustering.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/run_reports.h"
+#include "streamcvd/streaming/schedule/memory_budget.h"
 #include "tools/commands.h"
 #include "tools/job_options.h"
 

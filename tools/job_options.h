@@ -11,9 +11,9 @@
 #include <mutex>
 #include <string>
 
-#include "core/progress.h"
-#include "streaming/memory_budget.h"
-#include "streaming/store_build.h"
+#include "streamcvd/core/mesh/progress.h"
+#include "streamcvd/streaming/schedule/memory_budget.h"
+#include "streamcvd/streaming/store/store_build.h"
 
 namespace streamcvd::cli {
 

@@ -7,10 +7,10 @@
 #include <optional>
 #include <string>
 
-#include "core/mesh_buffers.h"
-#include "core/raster.h"
-#include "core/surface_distance.h"
-#include "streaming/store.h"
+#include "streamcvd/core/mesh/mesh_buffers.h"
+#include "streamcvd/core/measure/raster.h"
+#include "streamcvd/core/measure/surface_distance.h"
+#include "streamcvd/streaming/store/store.h"
 
 namespace streamcvd::cli {
 

@@ -7,8 +7,8 @@
 #include <cstdio>
 #include <iostream>
 
-#include "core/errors.h"
-#include "streaming/output_file.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/streaming/io/output_file.h"
 #include "tools/commands.h"
 
 namespace streamcvd::cli {

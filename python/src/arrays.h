@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "core/mesh_view.h"
-#include "streaming/mesh_reader.h"
+#include "streamcvd/core/mesh/mesh_view.h"
+#include "streamcvd/streaming/io/mesh_reader.h"
 
 namespace streamcvd::python {
 
@@ -33,7 +33,7 @@ struct InputMesh {
   TriangleSoupView view() const;
   VertexAttributeRows attribute_rows() const { return {attributes, attribute_values}; }
   /// Streams the mesh into `sink` as a reader would (header, vertex blocks, triangle blocks, end):
-  /// streaming/store_build.h's stream_soup with the attribute rows, throwing `Cancelled` between
+  /// streaming/store/store_build.h's stream_soup with the attribute rows, throwing `Cancelled` between
   /// blocks once `cancel` is set. Without the GIL.
   void stream(MeshSink& sink, const std::atomic<bool>& cancel) const;
 };

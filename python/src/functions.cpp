@@ -5,17 +5,17 @@
 #include <chrono>
 #include <memory>
 
-#include "core/cluster_energy.h"
-#include "core/errors.h"
-#include "core/mesh_stats.h"
-#include "core/surface_distance.h"
+#include "streamcvd/core/clustering/cluster_energy.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/measure/surface_distance.h"
 #include "python/src/arrays.h"
 #include "python/src/job.h"
-#include "streaming/memory_budget.h"
-#include "streaming/mesh_io.h"
-#include "streaming/output_file.h"
-#include "streaming/run_reports.h"
-#include "streaming/store.h"
+#include "streamcvd/streaming/schedule/memory_budget.h"
+#include "streamcvd/streaming/io/mesh_io.h"
+#include "streamcvd/streaming/io/output_file.h"
+#include "streamcvd/streaming/run_reports.h"
+#include "streamcvd/streaming/store/store.h"
 
 namespace streamcvd::python {
 

@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "streaming/mesh_reader.h"
-#include "streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/io/mesh_reader.h"
+#include "streamcvd/streaming/remesh_pipeline.h"
 
 namespace streamcvd::python {
 

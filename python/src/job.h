@@ -1,6 +1,6 @@
 // Running a library job from Python: off the GIL, on a worker thread, while the calling thread
 // watches for Ctrl-C. An interrupt sets the job's cancel flag, which its progress callback turns
-// into an exception (core/progress.h: the job unwinds, its temporary files vanish, no output is
+// into an exception (core/mesh/progress.h: the job unwinds, its temporary files vanish, no output is
 // renamed into place); the caller then gets KeyboardInterrupt.
 #pragma once
 
@@ -15,9 +15,9 @@
 #include <thread>
 #include <utility>
 
-#include "core/progress.h"
+#include "streamcvd/core/mesh/progress.h"
 #include "python/src/arrays.h"
-#include "streaming/run_reports.h"
+#include "streamcvd/streaming/run_reports.h"
 
 namespace streamcvd::python {
 

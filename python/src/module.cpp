@@ -5,7 +5,7 @@
 
 #include <tuple>
 
-#include "core/errors.h"
+#include "streamcvd/core/mesh/errors.h"
 #include "python/src/functions.h"
 
 namespace py = pybind11;

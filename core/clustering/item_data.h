@@ -1,0 +1,71 @@
+// Per-vertex clustering items (paper §V): the weight M_j and centroid γ_j of each vertex's dual
+// cell, with the density ρ as a per-vertex factor (eq. 10, 11; eq. 20 once curvature is known).
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "streamcvd/core/mesh/large_array.h"
+#include "streamcvd/core/mesh/mesh_view.h"
+
+namespace streamcvd {
+
+struct ItemData {
+  /// Frame origin: γ and cluster sums are stored relative to it (the bbox centre) so that
+  /// float32 centroids and double sums keep their precision far from the origin.
+  double origin[3] = {0, 0, 0};
+  LargeArray<double> weight;   ///< M_j = ρ_j · |P_j|, |P_j| = a third of the incident triangle areas
+  LargeArray<float> centroid;  ///< γ_j − origin, 3 per vertex: centroid of the barycentric dual cell
+  double total_weight = 0;      ///< Σ M_j
+  double total_area = 0;        ///< Σ |P_j|: the surface area (ρ not applied)
+  double sum_weighted_norm2 = 0;  ///< Σ M_j ‖γ_j‖² (the constant of eq. 13, for reporting E)
+  /// Metrics A/AQ: per-vertex tensor T_j (xx, xy, xz, yy, yz, zz); the item tensor of eq. 16
+  /// is K_j = M_j·T_j, so the anisotropic energy is area-weighted like the isotropic one.
+  LargeArray<float> tensor;
+  double sum_tensor_norm2 = 0;  ///< Σ γ_jᵀK_jγ_j (the constant of eq. 17, for reporting E)
+  /// Metrics IQ/AQ: per-vertex quadric, 10 floats (A 6, b 3, c), relative to `origin`.
+  LargeArray<float> quadric;
+};
+
+/// Visits the barycentric dual cell of vertex v face by face: fn(cell, pv, pa, pb) for each face
+/// (v, a, b) of v in its orientation, with cell = a third of the face's area and the corners in
+/// double relative to `origin`. O(deg v), no allocation. The one definition of |P_j| (eq. 10):
+/// the item weights and the area-weighted attribute means (core/mesh/vertex_attributes.h) use it.
+template <class Fn>
+inline void for_each_dual_cell_part(const MeshView& mesh, uint32_t v, const double origin[3], const Fn& fn) {
+  const float* P = mesh.positions.data();
+  const uint32_t* T = mesh.triangles.data();
+  const double pv[3] = {P[3 * size_t(v)] - origin[0], P[3 * size_t(v) + 1] - origin[1], P[3 * size_t(v) + 2] - origin[2]};
+  for (uint32_t f : mesh.faces_of(v)) {
+    const uint32_t i0 = T[3 * size_t(f)], i1 = T[3 * size_t(f) + 1], i2 = T[3 * size_t(f) + 2];
+    uint32_t a = i0 == v ? i1 : i0, b = i2 == v ? i1 : i2;
+    if (i1 == v) {
+      a = i2;
+      b = i0;
+    }
+    double pa[3], pb[3];
+    for (int c = 0; c < 3; ++c) {
+      pa[c] = P[3 * size_t(a) + c] - origin[c];
+      pb[c] = P[3 * size_t(b) + c] - origin[c];
+    }
+    const double e1[3] = {pa[0] - pv[0], pa[1] - pv[1], pa[2] - pv[2]};
+    const double e2[3] = {pb[0] - pv[0], pb[1] - pv[1], pb[2] - pv[2]};
+    const double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2], cz = e1[0] * e2[1] - e1[1] * e2[0];
+    fn(std::sqrt(cx * cx + cy * cy + cz * cz) / 6.0, pv, pa, pb);
+  }
+}
+
+/// Computes M_j and γ_j for every vertex. The barycentric dual cell of vertex v in triangle
+/// (v, a, b) has area A/3 and centroid (22v + 7a + 7b)/36. `density` (size V, or empty for
+/// ρ = 1) multiplies each weight. Isolated vertices get weight 0 and γ = their position.
+/// O(F) time; TBB-parallel over vertices (chunk order), deterministic. The arrays (20 bytes per
+/// vertex) come from `storage`.
+ItemData compute_item_data(const MeshView& mesh, std::span<const float> density = {},
+                           ArrayStorage& storage = ram_storage());
+
+/// Sets items.tensor (6 floats per vertex) and the constant Σ γ_jᵀK_jγ_j. O(V), fixed order.
+void attach_tensors(ItemData& items, LargeArray<float> tensors);
+
+}  // namespace streamcvd

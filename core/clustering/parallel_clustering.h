@@ -1,0 +1,41 @@
+// Parallel Algorithm 1 (DESIGN.md §4): the boundary-edge loop of core/clustering/clustering.h run over
+// regions of the Hilbert-ordered vertex range as TBB tasks (work stealing), with per-cluster
+// locks for the clusters that several regions touch. Same move test (core/clustering/cluster_energy.h),
+// same stop rules and the same report as the serial loop.
+//
+// Two modes:
+// - default: regions of one partition run concurrently; a cluster all of whose vertices are
+//   region-interior is owned by that region and used without locks; every other cluster is
+//   locked (try-lock in id order, labels re-read after locking, the edge postponed on failure).
+//   Postponed edges are retried serially at the end of the loop. The result depends on the
+//   scheduling: runs with the same seed and thread count may differ.
+// - deterministic: no locks; each loop runs two phases over two partitions (the second shifted
+//   by half a region), each region testing only the edges whose two clusters it owns, then a
+//   serial pass over the vertices left, in a fixed order. Regions depend on V only, so the
+//   output is byte-identical for every thread count.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "streamcvd/core/clustering/clustering.h"
+
+namespace streamcvd {
+
+/// Threads a `threads` option resolves to: 0 = TBB's current max_allowed_parallelism (all cores
+/// unless a tbb::global_control limits it), otherwise `threads`.
+uint32_t clustering_thread_count(uint32_t threads);
+
+/// The parallel counterpart of run_clustering_loops (same arguments and contract), with
+/// options.threads worker threads (0 = all) and options.deterministic. Thread-safe against
+/// nothing else touching `labels` or `state`; runs its own tbb::task_arena.
+/// O((V + E) / T) per loop plus a serial pass over postponed edges.
+uint32_t run_parallel_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                                       ClusterState& state, const LoopOptions& options, ClusteringReport& report,
+                                       std::span<const uint8_t> initially_active = {});
+
+/// update_site_offsets(state) for every cluster, clusters spread over `threads` threads (0 =
+/// all). Bit-identical to the serial call. O(K / T).
+void parallel_update_site_offsets(ClusterState& state, uint32_t threads);
+
+}  // namespace streamcvd

@@ -1,0 +1,442 @@
+#include "streamcvd/core/dual/mesh_optimize.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "streamcvd/core/mesh/bvh.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/mesh/vec3.h"
+
+namespace streamcvd {
+
+namespace {
+
+using namespace vec3;  // Vec3, sub, add, scale, dot, cross, norm, unit, point
+
+// Twice the area vector of (a, b, c): its direction is the face normal.
+Vec3 area_vector(const Vec3& a, const Vec3& b, const Vec3& c) { return cross(sub(b, a), sub(c, a)); }
+
+// Q = 6/√3 · area / (half-perimeter · longest edge) (DESIGN.md §9), 1 for an equilateral triangle.
+double quality(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const double l0 = norm(sub(b, a)), l1 = norm(sub(c, b)), l2 = norm(sub(a, c));
+  const double area = 0.5 * norm(area_vector(a, b, c));
+  const double denom = 0.5 * (l0 + l1 + l2) * std::max({l0, l1, l2});
+  return denom > 0 ? 6.0 / std::sqrt(3.0) * area / denom : 0.0;
+}
+
+constexpr int64_t kNoTwin = -1;
+// Triangles below this Q are slivers: their normal is unreliable (see free_vertices).
+constexpr double kSliverQuality = 0.2;
+
+uint32_t next_in_face(uint32_t h) { return h - h % 3 + (h + 1) % 3; }
+uint32_t prev_in_face(uint32_t h) { return h - h % 3 + (h + 2) % 3; }
+
+// Vertex-to-face CSR of the current triangles (rebuilt after each flip pass).
+void build_vertex_faces(std::span<const uint32_t> T, size_t V, std::vector<uint32_t>& offsets,
+                        std::vector<uint32_t>& faces) {
+  offsets.assign(V + 1, 0);
+  for (uint32_t v : T) ++offsets[v + 1];
+  for (size_t v = 0; v < V; ++v) offsets[v + 1] += offsets[v];
+  faces.resize(T.size());
+  std::vector<uint32_t> fill(offsets.begin(), offsets.end() - 1);
+  for (size_t h = 0; h < T.size(); ++h) faces[fill[T[h]]++] = uint32_t(h / 3);
+}
+
+// Twin half-edge of every half-edge h = 3f + k (edge T[h] → T[next_in_face(h)]); kNoTwin on
+// boundary edges, non-manifold edges (more than two faces) and edges used twice in the same
+// direction. O(F · valence) through the vertex-face CSR.
+std::vector<int64_t> build_twins(std::span<const uint32_t> T, size_t V) {
+  std::vector<uint32_t> offsets, faces;
+  build_vertex_faces(T, V, offsets, faces);
+  std::vector<int64_t> twin(T.size(), kNoTwin);
+  for (size_t h = 0; h < T.size(); ++h) {
+    const uint32_t a = T[h], b = T[next_in_face(uint32_t(h))];
+    if (a >= b) continue;  // each edge once, from its smaller end
+    uint32_t sharing = 0;
+    int64_t reverse = kNoTwin;
+    for (uint32_t i = offsets[a]; i < offsets[a + 1]; ++i) {
+      const uint32_t f = faces[i];
+      for (uint32_t g = 3 * f; g < 3 * f + 3; ++g) {
+        if (T[g] == b) ++sharing;
+        if (T[g] == b && T[next_in_face(g)] == a) reverse = g;
+      }
+    }
+    if (sharing == 2 && reverse != kNoTwin) twin[h] = reverse, twin[size_t(reverse)] = int64_t(h);
+  }
+  return twin;
+}
+
+// The mesh being optimized with its maintained connectivity.
+struct Work {
+  std::span<float> P;
+  std::span<uint32_t> T;
+  std::vector<int64_t> twin;         // kept valid by the flips
+  std::vector<uint32_t> face_count;  // faces per vertex (unchanged by moves; flips shift it)
+  std::vector<double> q;             // Q of every face, kept current
+  double cos_max_dihedral = 1;  // flips only between faces bent less than this
+};
+
+double face_quality(const Work& w, size_t f) {
+  return quality(point(w.P, w.T[3 * f]), point(w.P, w.T[3 * f + 1]), point(w.P, w.T[3 * f + 2]));
+}
+
+// True when vertex c already has neighbour d, or when c's faces do not form one fan (a
+// non-manifold vertex: refuse, its other fans are not visited). Rotates around c through
+// twins from half-edge h_out (c → x), both ways when the fan is open. O(valence).
+bool has_neighbour_or_unsafe(const Work& w, uint32_t h_out, uint32_t d) {
+  const uint32_t c = w.T[h_out];
+  uint32_t faces = 0;
+  uint32_t h = h_out;
+  bool closed = false;
+  for (;;) {  // clockwise: c → x, then the incoming y → c of the same face, twin = c → y
+    ++faces;
+    if (w.T[next_in_face(h)] == d || w.T[prev_in_face(h)] == d) return true;
+    const int64_t t = w.twin[prev_in_face(h)];
+    if (t == kNoTwin) break;
+    h = uint32_t(t);
+    if (h == h_out) {
+      closed = true;
+      break;
+    }
+    if (faces > w.face_count[c]) return true;
+  }
+  if (!closed) {
+    h = h_out;
+    for (;;) {  // the other way: twin of c → x is x → c, its next is c → z
+      const int64_t t = w.twin[h];
+      if (t == kNoTwin) break;
+      h = next_in_face(uint32_t(t));
+      ++faces;
+      if (w.T[next_in_face(h)] == d || w.T[prev_in_face(h)] == d) return true;
+      if (faces > w.face_count[c]) return true;
+    }
+  }
+  return faces != w.face_count[c];
+}
+
+// Flips the edge of half-edge h when that raises the smaller Q of its two triangles (Lawson's
+// max-min flip, with Q instead of the smallest angle). Returns true when flipped.
+bool try_flip(Work& w, uint32_t h) {
+  const int64_t hg = w.twin[h];
+  if (hg == kNoTwin) return false;
+  const uint32_t f = h / 3, g = uint32_t(hg) / 3;
+  auto& T = w.T;
+  const uint32_t a = T[h], b = T[next_in_face(h)], c = T[prev_in_face(h)];
+  const uint32_t d = T[prev_in_face(uint32_t(hg))];
+  if (c == d || a == b) return false;
+  const Vec3 pa = point(w.P, a), pb = point(w.P, b), pc = point(w.P, c), pd = point(w.P, d);
+  const Vec3 nf = unit(area_vector(pa, pb, pc)), ng = unit(area_vector(pb, pa, pd));
+  // A sliver's normal says nothing about the surface (strip triangles at scan holes): next to
+  // one, the well-shaped triangle alone gives the plane the new pair must stay in.
+  const bool sliver = std::min(w.q[f], w.q[g]) < kSliverQuality;
+  if (!sliver && dot(nf, ng) < w.cos_max_dihedral) return false;
+  const double q_old = std::min(w.q[f], w.q[g]);
+  const double q1 = quality(pa, pd, pc), q2 = quality(pd, pb, pc);
+  // A relative margin: equal-quality pairs (a square's two diagonals) must not flip back and forth.
+  if (std::min(q1, q2) <= q_old * (1 + 1e-6) + 1e-12) return false;
+  // The new pair must be as flat as the old and keep its orientation: no fold, no zero area.
+  const Vec3 n1 = area_vector(pa, pd, pc), n2 = area_vector(pd, pb, pc);
+  const Vec3 n_old = !sliver ? add(nf, ng) : w.q[f] >= w.q[g] ? nf : ng;
+  if (dot(n1, n_old) <= 0 || dot(n2, n_old) <= 0) return false;
+  if (dot(unit(n1), unit(n2)) < w.cos_max_dihedral) return false;
+  if (has_neighbour_or_unsafe(w, prev_in_face(h), d)) return false;  // c → a; would duplicate edge c-d
+  const int64_t x1 = w.twin[next_in_face(h)], x2 = w.twin[prev_in_face(h)];
+  const int64_t y1 = w.twin[next_in_face(uint32_t(hg))], y2 = w.twin[prev_in_face(uint32_t(hg))];
+  // New faces (a, d, c) and (d, b, c) keep the orientation of the old pair (a, b, c), (b, a, d).
+  T[3 * f] = a, T[3 * f + 1] = d, T[3 * f + 2] = c;
+  T[3 * g] = d, T[3 * g + 1] = b, T[3 * g + 2] = c;
+  auto link = [&](int64_t x, int64_t y) {
+    w.twin[size_t(x)] = y;
+    if (y != kNoTwin) w.twin[size_t(y)] = x;
+  };
+  link(3 * f, y1);             // a → d
+  link(3 * f + 1, 3 * g + 2);  // d → c / c → d
+  link(3 * f + 2, x2);         // c → a
+  link(3 * g, y2);             // d → b
+  link(3 * g + 1, x1);         // b → c
+  --w.face_count[a], --w.face_count[b], ++w.face_count[c], ++w.face_count[d];
+  w.q[f] = q1;
+  w.q[g] = q2;
+  return true;
+}
+
+// Flips from the queued half-edges until no flip helps (each flip raises the sorted Q vector
+// lexicographically, so this terminates; the cap only bounds float ties). Returns the flips.
+uint64_t flip_pass(Work& w, std::vector<uint32_t>& stack, std::vector<uint8_t>& queued) {
+  uint64_t flips = 0;
+  const uint64_t cap = 4 * uint64_t(w.T.size()) + 100;
+  while (!stack.empty() && flips < cap) {
+    const uint32_t h = stack.back();
+    stack.pop_back();
+    queued[h] = 0;
+    if (w.twin[h] == kNoTwin || queued[size_t(w.twin[h])]) continue;  // its twin is queued anyway
+    const uint32_t f = h / 3, g = uint32_t(w.twin[h]) / 3;
+    if (!try_flip(w, h)) continue;
+    ++flips;
+    for (uint32_t e : {3 * f, 3 * f + 2, 3 * g, 3 * g + 1})
+      if (!queued[e]) stack.push_back(e), queued[e] = 1;
+  }
+  for (uint32_t h : stack) queued[h] = 0;
+  stack.clear();
+  return flips;
+}
+
+// Vertices that may move: movable, with a surface face to project from, interior (no
+// boundary or non-manifold edge) and not on a feature (no incident edge bent more than the
+// feature angle). Decided once, on the input geometry of the pass.
+std::vector<uint8_t> free_vertices(const Work& w, std::span<const uint8_t> movable, std::span<const uint32_t> surface_face,
+                                   bool have_surface, double cos_feature) {
+  const size_t V = w.P.size() / 3;
+  std::vector<uint8_t> free(V, 0);
+  for (size_t v = 0; v < V; ++v)
+    free[v] = movable[v] && (!have_surface || surface_face[v] != UINT32_MAX) && w.face_count[v] > 0;
+  for (size_t h = 0; h < w.T.size(); ++h) {
+    bool pinned = w.twin[h] == kNoTwin;
+    if (!pinned && w.twin[h] > int64_t(h)) {
+      const size_t f = h / 3, g = size_t(w.twin[h]) / 3;
+      const Vec3 nf = unit(area_vector(point(w.P, w.T[3 * f]), point(w.P, w.T[3 * f + 1]), point(w.P, w.T[3 * f + 2])));
+      const Vec3 ng = unit(area_vector(point(w.P, w.T[3 * g]), point(w.P, w.T[3 * g + 1]), point(w.P, w.T[3 * g + 2])));
+      // A sliver's normal says nothing about the surface (strip triangles along holes, needles):
+      // only a bend between two well-shaped triangles is a feature.
+      pinned = dot(nf, ng) < cos_feature && std::min(w.q[f], w.q[g]) >= kSliverQuality;
+    }
+    if (pinned) free[w.T[h]] = free[w.T[next_in_face(uint32_t(h))]] = 0;
+  }
+  // A vertex whose faces form more than one fan (a defect left in the output) stays.
+  std::vector<uint8_t> checked(V, 0);
+  for (size_t h = 0; h < w.T.size(); ++h) {
+    const uint32_t v = w.T[h];
+    if (!free[v] || checked[v]) continue;
+    checked[v] = 1;
+    free[v] = !has_neighbour_or_unsafe(w, uint32_t(h), UINT32_MAX);
+  }
+  return free;
+}
+
+struct RelaxParams {
+  double step = 1, cos_normal_change = 0;
+};
+
+// One Gauss-Seidel sweep of tangential relaxation over the `active` vertices: each moves
+// towards the mean of its neighbours (uniform Laplacian, tangential part only). A move is kept
+// when the ring's Q sum rises, its smallest Q stays above min(old smallest, 0.5) and no ring
+// triangle turns by more than the limit. Moves stay in the tangent plane: the projection onto
+// the surface is done once at the end (project_moved). Marks moved vertices in `moved`.
+uint64_t relax_sweep(Work& w, std::span<const uint32_t> vf_offsets, std::span<const uint32_t> vf,
+                     std::span<const uint32_t> order, std::span<const uint8_t> active, const RelaxParams& params,
+                     std::vector<uint8_t>& moved) {
+  uint64_t moves = 0;
+  std::vector<Vec3> old_normal;
+  for (const uint32_t v : order) {
+    if (!active[v]) continue;
+    const auto ring = vf.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]);
+    const Vec3 p = point(w.P, v);
+    Vec3 mean{0, 0, 0}, normal{0, 0, 0};
+    double q_min_old = 1, q_sum_old = 0, edge_sum = 0;
+    old_normal.clear();
+    for (uint32_t f : ring) {
+      const uint32_t* t = &w.T[3 * size_t(f)];
+      const int kv = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
+      const Vec3 u = point(w.P, t[(kv + 1) % 3]), x = point(w.P, t[(kv + 2) % 3]);
+      const Vec3 n = area_vector(p, u, x);
+      // Each neighbour of an interior vertex is a corner of two ring faces: the mean of the
+      // edge midpoints opposite v is the mean of the neighbours.
+      mean = add(mean, scale(add(u, x), 0.5));
+      edge_sum += norm(sub(u, p));
+      normal = add(normal, n);
+      old_normal.push_back(unit(n));
+      q_min_old = std::min(q_min_old, w.q[f]);
+      q_sum_old += w.q[f];
+    }
+    normal = unit(normal);
+    Vec3 delta = sub(scale(mean, 1.0 / double(ring.size())), p);
+    delta = sub(delta, scale(normal, dot(delta, normal)));  // tangential part only
+    if (norm(delta) * params.step < 0.01 * edge_sum / double(ring.size())) continue;  // nothing to gain
+    const Vec3 target = add(p, scale(delta, params.step));
+    double q_min_new = 1, q_sum_new = 0;
+    bool ok = true;
+    for (size_t i = 0; i < ring.size() && ok; ++i) {
+      const uint32_t* t = &w.T[3 * size_t(ring[i])];
+      const int kv = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
+      const Vec3 u = point(w.P, t[(kv + 1) % 3]), x = point(w.P, t[(kv + 2) % 3]);
+      // Slivers may turn (that is how they fatten) but not fold over.
+      ok = dot(unit(area_vector(target, u, x)), old_normal[i]) >=
+           (w.q[ring[i]] >= kSliverQuality ? params.cos_normal_change : 1e-3);
+      const double q = quality(target, u, x);
+      q_min_new = std::min(q_min_new, q);
+      q_sum_new += q;
+    }
+    if (!ok || q_sum_new <= q_sum_old || q_min_new < std::min(q_min_old, 0.5)) continue;
+    for (int k = 0; k < 3; ++k) w.P[3 * size_t(v) + k] = float(target[k]);
+    for (uint32_t f : ring) w.q[f] = face_quality(w, f);  // of the float-rounded position
+    moved[v] = 1;
+    ++moves;
+  }
+  return moves;
+}
+
+// Puts every moved vertex back onto the surface: the closest surface point of its tangent-plane
+// position, plus its original offset from the surface when keep_offset (QEM points). The
+// tangent-plane drift is second order (move² · curvature), so Q barely changes; a vertex whose
+// projection would turn a ring triangle over keeps its tangent-plane position. Returns the
+// vertices placed on the surface.
+uint64_t project_moved(Work& w, const MeshView& surface, std::span<uint32_t> surface_face,
+                       std::span<const uint32_t> order, std::span<const uint8_t> moved, std::span<const Vec3> original,
+                       bool keep_offset) {
+  std::vector<uint32_t> vf_offsets, vf;
+  build_vertex_faces(w.T, w.P.size() / 3, vf_offsets, vf);
+  uint64_t projected = 0;
+  for (const uint32_t v : order) {
+    if (!moved[v]) continue;
+    const Vec3 p = point(w.P, v);
+    Vec3 offset{0, 0, 0}, q;
+    if (keep_offset) {
+      surface_face[v] = closest_point_walk(surface, surface_face[v], original[v], q);
+      offset = sub(original[v], q);
+    }
+    const uint32_t face = closest_point_walk(surface, surface_face[v], sub(p, offset), q);
+    const Vec3 target = add(q, offset);
+    bool ok = true;
+    for (uint32_t i = vf_offsets[v]; i < vf_offsets[v + 1] && ok; ++i) {
+      const uint32_t* t = &w.T[3 * size_t(vf[i])];
+      const int kv = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
+      const Vec3 u = point(w.P, t[(kv + 1) % 3]), x = point(w.P, t[(kv + 2) % 3]);
+      ok = dot(area_vector(target, u, x), area_vector(p, u, x)) > 0;
+    }
+    if (!ok) continue;
+    for (int k = 0; k < 3; ++k) w.P[3 * size_t(v) + k] = float(target[k]);
+    surface_face[v] = face;
+    for (uint32_t i = vf_offsets[v]; i < vf_offsets[v + 1]; ++i) w.q[vf[i]] = face_quality(w, vf[i]);
+    ++projected;
+  }
+  return projected;
+}
+
+}  // namespace
+
+// A straight walk in the surface (Devillers et al. 2002, "Walking in a triangulation") towards
+// the face whose plane projection of p has non-negative barycentric coordinates, crossing the
+// edge opposite the most negative one.
+uint32_t closest_point_walk(const MeshView& s, uint32_t face, const std::array<double, 3>& p, std::array<double, 3>& q) {
+  auto corner = [&](uint32_t f, int k) { return point(s.positions, s.triangles[3 * size_t(f) + k]); };
+  uint32_t previous = UINT32_MAX;
+  for (int step = 0; step < 32; ++step) {
+    const uint32_t* t = &s.triangles[3 * size_t(face)];
+    const Vec3 a = point(s.positions, t[0]), b = point(s.positions, t[1]), c = point(s.positions, t[2]);
+    const Vec3 n = area_vector(a, b, c);
+    const double nn = dot(n, n);
+    if (nn <= 0) break;
+    // Unnormalized barycentric coordinates of p's projection on the face's plane.
+    const double w[3] = {dot(cross(sub(c, b), sub(p, b)), n), dot(cross(sub(a, c), sub(p, c)), n),
+                         dot(cross(sub(b, a), sub(p, a)), n)};
+    if (w[0] >= 0 && w[1] >= 0 && w[2] >= 0) {
+      q = sub(p, scale(n, dot(sub(p, a), n) / nn));
+      return face;
+    }
+    const int k = w[0] <= w[1] && w[0] <= w[2] ? 0 : (w[1] <= w[2] ? 1 : 2);
+    const uint32_t u = t[(k + 1) % 3], v = t[(k + 2) % 3];
+    // The face across edge u-v: the other face in both (ascending) face lists.
+    uint32_t next = UINT32_MAX;
+    const auto fu = s.faces_of(u), fv = s.faces_of(v);
+    for (size_t i = 0, j = 0; i < fu.size() && j < fv.size();) {
+      if (fu[i] < fv[j]) ++i;
+      else if (fv[j] < fu[i]) ++j;
+      else if (fu[i] == face) ++i, ++j;
+      else {
+        next = fu[i];
+        break;
+      }
+    }
+    if (next == UINT32_MAX || next == previous) break;
+    previous = face;
+    face = next;
+  }
+  // Stopped on a boundary, a crease or a degenerate face: the closer of the last two faces.
+  q = closest_point_on_triangle(p, corner(face, 0), corner(face, 1), corner(face, 2));
+  if (previous != UINT32_MAX) {
+    const Vec3 r = closest_point_on_triangle(p, corner(previous, 0), corner(previous, 1), corner(previous, 2));
+    if (dot(sub(r, p), sub(r, p)) < dot(sub(q, p), sub(q, p))) {
+      q = r;
+      return previous;
+    }
+  }
+  return face;
+}
+
+
+double average_triangle_quality(std::span<const float> positions, std::span<const uint32_t> triangles) {
+  const size_t F = triangles.size() / 3;
+  if (F == 0) return 0;
+  double sum = 0;
+  for (size_t f = 0; f < F; ++f)
+    sum += quality(point(positions, triangles[3 * f]), point(positions, triangles[3 * f + 1]),
+                   point(positions, triangles[3 * f + 2]));
+  return sum / double(F);
+}
+
+MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<uint32_t> triangles,
+                                         std::span<const uint8_t> movable, const MeshView* surface,
+                                         std::span<uint32_t> surface_face, const MeshOptimizeOptions& options) {
+  MeshOptimizeReport report;
+  const size_t V = positions.size() / 3, F = triangles.size() / 3;
+  if (movable.size() != V || (surface && surface_face.size() != V) || triangles.size() != 3 * F)
+    throw InputError("optimize_mesh_quality: movable and surface_face need one entry per vertex");
+  for (uint32_t v : triangles)
+    if (v >= V) throw InputError("optimize_mesh_quality: a triangle uses vertex " + std::to_string(v) + " of " + std::to_string(V));
+  const double deg = std::numbers::pi / 180;
+  Work w{positions, triangles, build_twins(triangles, V), std::vector<uint32_t>(V, 0), std::vector<double>(F),
+         std::cos(options.flip_max_dihedral_deg * deg)};
+  double q_sum = 0;
+  for (size_t f = 0; f < F; ++f) q_sum += w.q[f] = face_quality(w, f);
+  report.q_avg_before = F ? q_sum / double(F) : 0;
+  for (uint32_t v : triangles) ++w.face_count[v];
+
+  std::vector<uint32_t> stack;
+  std::vector<uint8_t> queued(triangles.size(), 0);
+  for (size_t h = triangles.size(); h-- > 0;)
+    if (w.twin[h] > int64_t(h)) stack.push_back(uint32_t(h)), queued[h] = 1;
+  report.flips += flip_pass(w, stack, queued);
+
+  const std::vector<uint8_t> free =
+      free_vertices(w, movable, surface_face, surface != nullptr, std::cos(options.feature_angle_deg * deg));
+  std::vector<uint32_t> order;
+  for (uint32_t v = 0; v < V; ++v)
+    if (free[v]) order.push_back(v);
+  // By surface face (the input's faces are in spatial order): the projection walks then visit
+  // the input surface in a cache-friendly order.
+  if (surface)
+    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return surface_face[a] < surface_face[b]; });
+  std::vector<Vec3> original(V);
+  for (uint32_t v : order) original[v] = point(positions, v);
+  std::vector<uint8_t> active = free, moved(V, 0), ever_moved(V, 0);
+  std::vector<uint32_t> vf_offsets, vf;
+  const RelaxParams params{options.relax_step, std::cos(options.max_normal_change_deg * deg)};
+  for (uint32_t it = 0; it < options.relax_iterations; ++it) {
+    build_vertex_faces(triangles, V, vf_offsets, vf);
+    std::fill(moved.begin(), moved.end(), 0);
+    if (relax_sweep(w, vf_offsets, vf, order, active, params, moved) == 0) break;
+    // Flips and the next sweep only where something moved: the faces around moved vertices.
+    std::fill(active.begin(), active.end(), 0);
+    for (size_t v = 0; v < V; ++v) {
+      if (!moved[v]) continue;
+      ever_moved[v] = 1;
+      for (uint32_t i = vf_offsets[v]; i < vf_offsets[v + 1]; ++i)
+        for (uint32_t h = 3 * vf[i]; h < 3 * vf[i] + 3; ++h) {
+          active[triangles[h]] = free[triangles[h]];
+          if (!queued[h]) stack.push_back(h), queued[h] = 1;
+        }
+    }
+    report.flips += flip_pass(w, stack, queued);
+  }
+  for (uint32_t v : order) report.moves += ever_moved[v];
+  if (surface) project_moved(w, *surface, surface_face, order, ever_moved, original, options.keep_surface_offset);
+  q_sum = 0;
+  for (size_t f = 0; f < F; ++f) q_sum += w.q[f];
+  report.q_avg_after = F ? q_sum / double(F) : 0;
+  return report;
+}
+
+}  // namespace streamcvd

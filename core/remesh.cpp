@@ -10,6 +10,7 @@
 #include "streamcvd/core/dual/strip_shape.h"
 #include "streamcvd/core/clustering/lloyd.h"
 #include "streamcvd/core/dual/repair.h"
+#include "streamcvd/core/mesh/timer.h"
 
 #include <algorithm>
 #include <array>
@@ -23,10 +24,6 @@
 namespace streamcvd {
 
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // CPU seconds used by the whole process so far (all threads).
 double process_cpu_seconds() {

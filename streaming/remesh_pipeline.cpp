@@ -14,14 +14,11 @@
 #include "streamcvd/streaming/io/mesh_io.h"
 #include "streamcvd/streaming/store/subdivision_stream.h"
 #include "streamcvd/streaming/schedule/work_space.h"
+#include "streamcvd/core/mesh/timer.h"
 
 namespace streamcvd {
 
 namespace {
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
 std::string default_work_directory() {
   const char* tmp = std::getenv("TMPDIR");
   return tmp && *tmp ? tmp : "/tmp";

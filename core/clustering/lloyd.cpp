@@ -3,6 +3,7 @@
 // shape approximation: a vertex is only offered to the clusters of its already-assigned
 // neighbours, so every cluster stays one connected piece and keeps its seed (never empty).
 #include "streamcvd/core/clustering/lloyd.h"
+#include "streamcvd/core/mesh/timer.h"
 
 #include <algorithm>
 #include <chrono>
@@ -13,10 +14,6 @@
 namespace streamcvd {
 
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 struct Push {
   double cost;

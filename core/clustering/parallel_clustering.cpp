@@ -40,6 +40,7 @@
 
 #include "streamcvd/core/clustering/connectivity_check.h"
 #include "streamcvd/core/mesh/parallel_blocks.h"
+#include "streamcvd/core/mesh/timer.h"
 
 namespace streamcvd {
 
@@ -54,10 +55,6 @@ constexpr int32_t kUnseen = -2;
 constexpr uint32_t kNone = UINT32_MAX;
 constexpr uint32_t kMaxRegions = 65535;
 constexpr size_t kSerialBelow = 2048;  // candidate vertices below which a sweep runs on one thread
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // Labels are read outside the locks by other threads: every access is atomic (relaxed; the
 // cluster locks order the accumulators, and a label is re-read after locking).

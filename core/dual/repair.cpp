@@ -20,6 +20,7 @@
 
 #include "streamcvd/core/clustering/cluster_members.h"
 #include "streamcvd/core/dual/dual_topology.h"
+#include "streamcvd/core/mesh/timer.h"
 
 namespace streamcvd {
 
@@ -95,10 +96,6 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
 namespace {
 
 using Triple = dual::Face;
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 struct LabelChange {
   uint32_t vertex;

@@ -11,15 +11,12 @@
 #include <vector>
 
 #include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/mesh/timer.h"
 
 namespace streamcvd {
 namespace {
 
 using OmMesh = OpenMesh::TriMesh_ArrayKernelT<>;
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // Re-enables OpenMesh's error stream however the build ends: add_face() prints one line per
 // refused face ("complex edge"), which on a scan with defects would flood stderr.

@@ -207,7 +207,7 @@ void StoreBuilder::end(const ReadStats& stats) {
   s.read = stats;
   // Until now: reading and spilling, plus the passes that ran inside the callbacks.
   s.result.report.read_seconds =
-      s.seconds_since(s.started) - s.result.report.order_seconds - s.result.report.faces_seconds;
+      seconds_since(s.started) - s.result.report.order_seconds - s.result.report.faces_seconds;
   if (!s.ordered) {
     s.order_vertices();
     s.begin_faces();

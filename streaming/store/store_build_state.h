@@ -13,6 +13,7 @@
 #include "streamcvd/streaming/store/hilbert.h"
 #include "streamcvd/streaming/store/spill.h"
 #include "streamcvd/streaming/store/store_build.h"
+#include "streamcvd/core/mesh/timer.h"
 
 namespace streamcvd {
 
@@ -98,9 +99,6 @@ struct StoreBuilder::State {
   uint64_t free_after(uint64_t held) const { return held >= usable ? 0 : usable - held; }
   /// Throws InputError when `need` bytes of working memory do not fit under the limit.
   void require(uint64_t need, const char* what) const;
-  double seconds_since(std::chrono::steady_clock::time_point t) const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-  }
 
   StoreOutputs& outputs;
   StoreBuildOptions options;

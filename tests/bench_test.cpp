@@ -172,10 +172,15 @@ TEST(Bench, TinySuiteRunsEndToEndAndRepeats) {
     EXPECT_EQ(png.height, 120u);
   }
   const json& cvd = records[0];
-  EXPECT_GT(cvd["loops"]["unconstrained"].get<int>(), 0);
+  EXPECT_GT(cvd["report"]["clustering"]["unconstrained_loops"].get<int>(), 0);
+  EXPECT_EQ(cvd["report"]["output"]["vertices"], 200);  // the remesh report, as `remesh --report` writes it
+  EXPECT_TRUE(cvd["report"]["checks"]["all_ok"].get<bool>());
+  EXPECT_GT(cvd["report"]["seconds"]["clustering"].get<double>(), 0.0);
+  EXPECT_TRUE(cvd["report"]["seconds"].contains("optimize"));
+  EXPECT_TRUE(cvd["report"]["seconds"].contains("clustering_cpu"));
   EXPECT_EQ(cvd["energy_per_loop"].size(), cvd["seconds_per_loop"].size());
   EXPECT_GT(cvd["energy_per_loop"].size(), 0u);
-  EXPECT_GT(cvd["final_energy"].get<double>(), 0.0);
+  EXPECT_GT(cvd["report"]["clustering"]["final_energy"].get<double>(), 0.0);
   EXPECT_EQ(records[1]["target_vertices"], 200);
   EXPECT_EQ(records[2]["status"], "skipped");
 
@@ -193,7 +198,7 @@ TEST(Bench, TinySuiteRunsEndToEndAndRepeats) {
     EXPECT_EQ(second["records"][i]["quality"], records[i]["quality"]) << i;
     EXPECT_EQ(second["records"][i]["distance"]["hausdorff"], records[i]["distance"]["hausdorff"]) << i;
   }
-  EXPECT_EQ(second["records"][0]["final_energy"], cvd["final_energy"]);
+  EXPECT_EQ(second["records"][0]["report"]["clustering"]["final_energy"], cvd["report"]["clustering"]["final_energy"]);
   EXPECT_EQ(second["records"][1]["qem"], records[1]["qem"]);
   fs::remove_all(dir);
 }
@@ -225,11 +230,12 @@ TEST(Bench, LloydBaselineRunsBesideCvdAndIsPlotted) {
     const auto& t = r["seconds_per_loop"];
     for (size_t k = 1; k < t.size(); ++k) EXPECT_GE(t[k].get<double>(), t[k - 1].get<double>()) << "time is cumulative";
   }
-  EXPECT_EQ(records[1]["loops"]["constrained"], 0);
+  EXPECT_EQ(records[1]["report"]["clustering"]["constrained_loops"], 0);
   for (size_t i = 0; i < 4; ++i)
     EXPECT_EQ(records[i]["energy_per_loop"].size(),
-              records[i]["loops"]["unconstrained"].get<size_t>() + records[i]["loops"]["constrained"].get<size_t>());
-  EXPECT_LE(records[3]["loops"]["unconstrained"].get<int>(), 7);
+              records[i]["report"]["clustering"]["unconstrained_loops"].get<size_t>() +
+                  records[i]["report"]["clustering"]["constrained_loops"].get<size_t>());
+  EXPECT_LE(records[3]["report"]["clustering"]["unconstrained_loops"].get<int>(), 7);
   // Paper §VII: Algorithm 1 ends at least as low as Lloyd (1% slack for a different local minimum).
   for (size_t i : {0, 2})
     EXPECT_GE(records[i + 1]["clustering_energy"].get<double>(), 0.99 * records[i]["clustering_energy"].get<double>()) << i;

@@ -37,9 +37,9 @@
 #include "streamcvd/streaming/io/output_file.h"
 #include "streamcvd/streaming/io/png_writer.h"
 #include "streamcvd/streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/run_reports.h"
 #include "tools/bench.h"
 #include "tools/commands.h"
-#include "streamcvd/streaming/run_reports.h"
 #include "tools/measure.h"
 
 namespace streamcvd::cli {
@@ -176,22 +176,14 @@ json run_row(const BenchCase& c, const std::string& algorithm, uint32_t target, 
     if (algorithm == "lloyd") options.remesh.clustering.algorithm = ClusteringOptions::Algorithm::Lloyd;
     options.remesh.clustering.lloyd_max_iterations = c.lloyd_max_iterations;
     options.remesh.clustering.lloyd_time_limit = c.lloyd_time_limit;
+    const IoCounters io0 = read_io_counters();
     PipelineResult p = remesh_path(c.mesh_path, options);
     const double total = now_seconds() - t0;
-    const RemeshResult& rm = p.remesh;
-    r["input"] = {{"vertices", p.input.vertices}, {"faces", p.input.faces}, {"subdivision_levels", p.subdivision_levels}};
-    r["seconds"] = {{"load", p.load_seconds},          {"store", p.store_seconds},   {"subdivide", p.subdivide_seconds},
-                    {"curvature", rm.seconds.curvature},
-                    {"items", rm.seconds.items},       {"sampling", rm.seconds.sampling},
-                    {"clustering", rm.seconds.clustering}, {"repair", rm.seconds.repair},
-                    {"dual", rm.seconds.dual},         {"algorithm", total - p.load_seconds}, {"total", total}};
-    r["loops"] = {{"unconstrained", rm.clustering.unconstrained_loops},
-                  {"constrained", rm.clustering.constrained_loops},
-                  {"repair_rounds", rm.repair_rounds_used},
-                  {"repair_count_rounds", rm.repair_count_rounds}};
-    r["final_energy"] = rm.final_energy;
-    r["defect_vertices"] = rm.defect_vertices;
-    loop_series(rm.clustering, r);
+    // The record of `streamcvd remesh --report` (one writer for both commands: stage times,
+    // loops, repair, checks...), beside the figures every algorithm of the table has.
+    r["report"] = remesh_report(p, options, {c.mesh_path, paths.mesh_out, 0, total, io0, nullptr});
+    r["seconds"] = {{"load", p.load_seconds}, {"algorithm", total - p.load_seconds}, {"total", total}};
+    loop_series(p.remesh.clustering, r);
     output = std::move(p.remesh.mesh);
   } else {  // "openmesh-qem"
     LoadedMesh input = load_mesh_or_store(c.mesh_path);

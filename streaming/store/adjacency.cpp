@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "streamcvd/core/mesh/mesh_view.h"
+#include "streamcvd/streaming/store/counting_sort.h"
 
 namespace streamcvd {
 namespace {
@@ -83,14 +84,6 @@ uint32_t range_begin(uint32_t n, uint32_t parts, uint32_t p) { return uint32_t(u
 uint32_t scan_parts(uint32_t vertex_count) {
   const int threads = tbb::this_task_arena::max_concurrency();
   return std::max<uint32_t>(1, std::min<uint32_t>({uint32_t(std::max(threads, 1)), 8u, vertex_count}));
-}
-
-// Number of corner ranges of build_vertex_face_adjacency: one per thread, at most 8, one for
-// small inputs (each range costs a count array of V entries). The output never depends on it.
-uint32_t item_ranges(uint64_t items) {
-  const int threads = tbb::this_task_arena::max_concurrency();
-  return uint32_t(std::clamp<uint64_t>(std::min<uint64_t>(uint64_t(std::max(threads, 1)), 8), 1,
-                                       std::max<uint64_t>(1, items >> 16)));
 }
 
 // Per-thread scratch of compute_vertex_flags.
@@ -231,45 +224,16 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t f
     return v < vertex_count ? v : vertex_count;
   };
   offsets.resize(size_t(vertex_count) + 2);
-  const uint32_t ranges = item_ranges(corners);
-  if (ranges > 1 && corners <= UINT32_MAX) {
-    // Each task takes a contiguous range of corners, counts them per vertex in its own array,
-    // and after a prefix sum in (vertex, range) order places them with those counts as cursors:
-    // one pass over the corners per phase, and lists come out ascending (ranges follow face
-    // order). Cursors are 32-bit, hence the corner limit.
-    std::vector<std::vector<uint32_t>> cursor(ranges);
-    auto range_of = [&](uint32_t r) { return std::pair(corners * r / ranges, corners * (r + 1) / ranges); };
-    tbb::parallel_for(uint32_t(0), ranges, [&](uint32_t r) {
-      cursor[r].assign(size_t(vertex_count) + 1, 0);  // here, so that each task pages in its own array
-      const auto [lo, hi] = range_of(r);
-      for (size_t i = lo; i < hi; ++i) ++cursor[r][local(i)];
-    });
-    // Prefix sum in (vertex, range) order, in parallel over vertex blocks: their totals, then
-    // each block from its base (integer sums: the same for any split).
-    auto block_begin = [&](uint32_t k) { return uint32_t(uint64_t(vertex_count) * k / kScanBlocks); };
-    std::array<uint64_t, kScanBlocks + 1> base{};
-    tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
-      uint64_t total = 0;
-      for (uint32_t r = 0; r < ranges; ++r)
-        for (uint32_t v = block_begin(k); v != block_begin(k + 1); ++v) total += cursor[r][v];
-      base[k + 1] = total;
-    });
-    for (uint32_t k = 0; k < kScanBlocks; ++k) base[k + 1] += base[k];
-    tbb::parallel_for(uint32_t(0), kScanBlocks, [&](uint32_t k) {
-      uint64_t sum = base[k];
-      for (uint32_t v = block_begin(k); v != block_begin(k + 1); ++v) {
-        offsets[v] = sum;
-        for (uint32_t r = 0; r < ranges; ++r) sum += std::exchange(cursor[r][v], uint32_t(sum));
-      }
-    });
-    offsets[vertex_count] = base[kScanBlocks];
-    faces.resize(offsets[vertex_count]);  // a no-op when the caller passes a reused array of that size
-    tbb::parallel_for(uint32_t(0), ranges, [&](uint32_t r) {
-      uint32_t* at = cursor[r].data();
-      const auto [lo, hi] = range_of(r);
-      for (size_t i = lo; i < hi; ++i)
-        if (const uint32_t v = local(i); v < vertex_count) faces[at[v]++] = uint32_t(i / 3);
-    });
+  if (counting_sort_parts(corners) > 1 && corners <= UINT32_MAX) {
+    // A stable counting sort of the corners by local vertex (the sink last): one pass over the
+    // corners per phase, and lists come out ascending (face order). 32-bit cursors, hence the
+    // corner limit.
+    counting_sort(
+        corners, vertex_count + 1, local, offsets,
+        [&](uint64_t i, uint32_t at) {
+          if (local(i) < vertex_count) faces[at] = uint32_t(i / 3);
+        },
+        [&] { faces.resize(offsets[vertex_count]); });  // a no-op for a reused array of that size
     offsets.pop_back();
     return;
   }

@@ -27,9 +27,11 @@ inline uint32_t counting_sort_parts(uint64_t items) {
 /// counting_sort_parts() contiguous ranges, each counted and placed by one task with its own
 /// cursor per bucket (the prefix sum runs in (bucket, range) order): one branch-free pass over
 /// the input per phase, and the result is the unique stable order whatever the number of
-/// ranges. n < 2^32. Memory: parts × buckets 32-bit counts.
-template <typename Start, typename BucketOf, typename Place>
-void counting_sort(uint64_t n, uint32_t buckets, BucketOf bucket_of, Start& start, Place place) {
+/// ranges. n < 2^32. Memory: parts × buckets 32-bit counts. `counted()` runs once `start` is
+/// complete and before the first place() (e.g. to size the output).
+template <typename Start, typename BucketOf, typename Place, typename Counted = void (*)()>
+void counting_sort(uint64_t n, uint32_t buckets, BucketOf bucket_of, Start& start, Place place,
+                   Counted counted = [] {}) {
   constexpr uint32_t kScanBlocks = 64;  // bucket blocks of the parallel prefix sum
   const uint32_t parts = counting_sort_parts(n);
   auto item_begin = [&](uint32_t p) { return n * p / parts; };
@@ -58,6 +60,7 @@ void counting_sort(uint64_t n, uint32_t buckets, BucketOf bucket_of, Start& star
     }
   });
   start[buckets] = base[kScanBlocks];
+  counted();
   tbb::parallel_for(uint32_t(0), parts, [&](uint32_t p) {
     uint32_t* at = cursor[p].data();
     for (uint64_t i = item_begin(p); i != item_begin(p + 1); ++i) place(i, at[bucket_of(i)]++);

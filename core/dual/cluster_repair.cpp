@@ -1,7 +1,7 @@
-// The repair's edits (core/dual/cluster_repair.h): split_cluster, BFS inside the cluster from
-// farthest-point seeds, and ClusterRepair::round, which splits the defective clusters, dissolves
-// islands and keeps the cluster count with merges of light pairs far from any defect (link
-// condition) or splits of heavy clusters.
+// The repair's edits (core/dual/cluster_repair.h): split_cluster, two floods inside one label
+// (core/mesh/label_flood.h) from farthest-point seeds, and ClusterRepair::round, which splits the
+// defective clusters, dissolves islands and keeps the cluster count with merges of light pairs
+// far from any defect (link condition) or splits of heavy clusters.
 #include "streamcvd/core/dual/cluster_repair.h"
 
 #include <tbb/blocked_range.h>
@@ -12,33 +12,15 @@
 #include <numeric>
 
 #include "streamcvd/core/dual/dual_topology.h"
+#include "streamcvd/core/mesh/label_flood.h"
 
 namespace streamcvd::detail {
 
 namespace {
 
 // Position of vertex v in the ascending member list of its cluster.
-inline uint32_t slot_of(std::span<const uint32_t> members, uint32_t v) {
+uint32_t slot_of(std::span<const uint32_t> members, uint32_t v) {
   return uint32_t(std::lower_bound(members.begin(), members.end(), v) - members.begin());
-}
-
-// Multi-source BFS inside cluster `c` (whose members are `members`) from `sources`; returns the
-// last vertex reached, the member farthest (in hops) from every source: the next
-// farthest-point seed.
-uint32_t farthest_in_cluster(const MeshView& mesh, std::span<const int32_t> labels, int32_t c,
-                             std::span<const uint32_t> members, std::span<const uint32_t> sources,
-                             std::vector<uint32_t>& queue, std::vector<uint32_t>& stamp, uint32_t mark) {
-  queue.assign(sources.begin(), sources.end());
-  for (uint32_t s : sources) stamp[slot_of(members, s)] = mark;
-  for (size_t h = 0; h < queue.size(); ++h)
-    for (uint32_t n : mesh.neighbours(queue[h]))
-      if (labels[n] == c) {
-        uint32_t& st = stamp[slot_of(members, n)];
-        if (st == mark) continue;
-        st = mark;
-        queue.push_back(n);
-      }
-  return queue.back();
 }
 
 // Number of ids both sorted lists hold.
@@ -60,38 +42,28 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
   const int32_t c = labels[members[0]];
   scratch.stamp.assign(members.size(), 0);
   scratch.next_mark = 1;
-  std::vector<uint32_t>& stamp = scratch.stamp;
   std::vector<uint32_t>& queue = scratch.queue;
+  auto slot = [&](uint32_t v) { return slot_of(members, v); };
+  // The member farthest (in hops inside c) from every source: the last one a flood reaches.
+  auto farthest = [&](std::span<const uint32_t> sources) {
+    flood_label(mesh, labels, c, sources, slot, scratch.stamp, scratch.next_mark++, queue, [](uint32_t, uint32_t) {});
+    return queue.back();
+  };
   // Farthest-point seeds: the first is far from an arbitrary member, each next one is the
   // member farthest from all seeds chosen so far.
   std::vector<uint32_t> seeds;
   const uint32_t first = members[0];
-  seeds.push_back(farthest_in_cluster(mesh, labels, c, members, {&first, 1}, queue, stamp, scratch.next_mark++));
+  seeds.push_back(farthest({&first, 1}));
   while (seeds.size() < new_labels.size() + 1 && seeds.size() < members.size()) {
-    uint32_t s = farthest_in_cluster(mesh, labels, c, members, seeds, queue, stamp, scratch.next_mark++);
+    const uint32_t s = farthest(seeds);
     if (std::find(seeds.begin(), seeds.end(), s) != seeds.end()) break;
     seeds.push_back(s);
   }
   if (seeds.size() < 2) return 0;
-  // Multi-source BFS: each member joins the seed that reaches it first; every part connected.
-  const uint32_t mark = scratch.next_mark++;
-  std::vector<uint32_t>& frontier = queue;
-  frontier = seeds;
-  for (size_t k = 0; k < seeds.size(); ++k) {
-    stamp[slot_of(members, seeds[k])] = mark;
-    if (k > 0) labels[seeds[k]] = new_labels[k - 1];
-  }
-  for (size_t h = 0; h < frontier.size(); ++h) {
-    uint32_t u = frontier[h];
-    for (uint32_t n : mesh.neighbours(u))
-      if (labels[n] == c) {
-        uint32_t& st = stamp[slot_of(members, n)];
-        if (st == mark) continue;
-        st = mark;
-        labels[n] = labels[u];
-        frontier.push_back(n);
-      }
-  }
+  // Multi-source flood: each member joins the seed that reaches it first; every part connected.
+  for (size_t k = 1; k < seeds.size(); ++k) labels[seeds[k]] = new_labels[k - 1];
+  flood_label(mesh, labels, c, seeds, slot, scratch.stamp, scratch.next_mark++, queue,
+              [&](uint32_t from, uint32_t v) { labels[v] = labels[from]; });
   return uint32_t(seeds.size() - 1);
 }
 
@@ -175,12 +147,8 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
   for (size_t i = 0; i < defects.size(); ++i) {
     const int32_t c = defects[i];
     near_.insert(c);
-    auto& list = neighbours_of_defect[i];
-    for (uint32_t v : members_of(c))
-      for (uint32_t n : mesh_.neighbours(v))
-        if (labels_[n] >= 0 && labels_[n] != c) list.push_back(labels_[n]);
-    dual::sort_unique(list);
-    for (int32_t n : list) near_.insert(n);
+    neighbour_clusters(c, neighbours_of_defect[i]);
+    for (int32_t n : neighbours_of_defect[i]) near_.insert(n);
   }
   std::vector<int32_t> touched;
   std::vector<int32_t> free_ids;  // ids released by dissolved islands and merges
@@ -236,17 +204,11 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     // reads jump across the whole mesh: out of core, a 105M-face store at 2 GiB re-read its
     // pages for every candidate (repair 186 s instead of 31 s).
     std::sort(candidates.begin(), candidates.end());
-    for (int32_t a : candidates) {
+    for (int32_t a : candidates) {  // each proposes its lightest compensable neighbour
       std::vector<int32_t>& around = round_neighbours_[a];
-      for (uint32_t v : members_of(a))
-        for (uint32_t n : mesh_.neighbours(v)) {
-          const int32_t b = labels_[n];
-          if (b < 0 || b == a) continue;
-          around.push_back(b);
-          if (!compensable(b)) continue;
-          if (partner_[a] < 0 || lighter(b, partner_[a])) partner_[a] = b;
-        }
-      dual::sort_unique(around);
+      neighbour_clusters(a, around);
+      for (int32_t b : around)
+        if (compensable(b) && (partner_[a] < 0 || lighter(b, partner_[a]))) partner_[a] = b;
     }
     {  // the partners' neighbour lists, in id order too
       std::vector<int32_t> partners;

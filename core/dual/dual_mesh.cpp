@@ -1,3 +1,6 @@
+// The dual mesh (core/dual/dual_mesh.h): boundary loops, the §VI-D strips (Douglas–Peucker
+// corners, holes closed below the output resolution), build_dual_mesh on the triples of
+// core/dual/dual_topology.h, and the output-side defect finder and last-resort removal.
 #include "streamcvd/core/dual/dual_mesh.h"
 
 #include <tbb/blocked_range.h>

@@ -1,3 +1,5 @@
+// The quality post-pass (core/dual/mesh_optimize.h): half-edge twins, max-min Q flips, tangential
+// relaxation and the projection back onto the input by a walk in its faces.
 #include "streamcvd/core/dual/mesh_optimize.h"
 
 #include <algorithm>

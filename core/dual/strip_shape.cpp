@@ -1,3 +1,5 @@
+// Strip shaping (core/dual/strip_shape.h): slides strip vertices along the input boundary and
+// moves the cluster vertices around them to lower Σ 1/Q over their fans.
 #include "streamcvd/core/dual/strip_shape.h"
 
 #include <algorithm>
@@ -380,7 +382,7 @@ void shape_round(DualMesh& dual, const MeshView& surface, const BoundaryLoops& l
     src.count = count;
     src.t = float(pl.s - k);
   }
-  }
+}
 
 }  // namespace
 

@@ -1,3 +1,6 @@
+// The dual mesh (core/dual/dual_mesh.h): boundary loops, the §VI-D strips (Douglas–Peucker
+// corners, holes closed below the output resolution), build_dual_mesh on the triples of
+// core/dual/dual_topology.h, and the output-side defect finder and last-resort removal.
 #include "streamcvd/core/dual/dual_mesh.h"
 
 #include <tbb/blocked_range.h>
@@ -13,10 +16,6 @@
 namespace streamcvd {
 
 namespace {
-
-using Triple = dual::Face;
-
-inline Triple canonical_rotation(uint32_t a, uint32_t b, uint32_t c) { return dual::rotate_smallest_first(a, b, c); }
 
 // Number of faces holding both u and v: the intersection of two ascending face lists.
 inline uint32_t shared_faces(const MeshView& mesh, uint32_t u, uint32_t v) {
@@ -151,7 +150,7 @@ bool diameter_below(const float* P, std::span<const uint32_t> loop, double d) {
 // has it as one vertex (it would be pinched), so such a loop keeps its strip: returns false.
 bool close_hole(const float* P, std::span<const uint32_t> loop, std::span<const uint32_t> changes,
                 std::span<const int32_t> labels, std::span<const uint32_t> output_of_cluster, DualMesh& dual,
-                std::vector<Triple>& faces) {
+                std::vector<dual::Face>& faces) {
   const size_t n = loop.size(), m = changes.size();
   auto from = [&](size_t t) { return labels[loop[changes[t % m]]]; };
   auto to = [&](size_t t) { return labels[loop[(changes[t % m] + 1) % n]]; };
@@ -160,7 +159,7 @@ bool close_hole(const float* P, std::span<const uint32_t> loop, std::span<const 
   std::sort(ring.begin(), ring.end());
   if (std::adjacent_find(ring.begin(), ring.end()) != ring.end()) return false;
   if (m == 3) {  // edges to → from: (to0, from0 = to2, to1)
-    faces.push_back(canonical_rotation(output_of_cluster[to(0)], output_of_cluster[from(0)], output_of_cluster[to(1)]));
+    faces.push_back(dual::rotate_smallest_first(output_of_cluster[to(0)], output_of_cluster[from(0)], output_of_cluster[to(1)]));
     return true;
   }
   double c[3] = {0, 0, 0};
@@ -168,7 +167,7 @@ bool close_hole(const float* P, std::span<const uint32_t> loop, std::span<const 
     for (int k = 0; k < 3; ++k) c[k] += P[3 * size_t(v) + k];
   const float centre[3] = {float(c[0] / double(n)), float(c[1] / double(n)), float(c[2] / double(n))};
   const uint32_t h = add_strip_vertex(dual, centre, loop);
-  for (size_t t = 0; t < m; ++t) faces.push_back(canonical_rotation(h, output_of_cluster[to(t)], output_of_cluster[from(t)]));
+  for (size_t t = 0; t < m; ++t) faces.push_back(dual::rotate_smallest_first(h, output_of_cluster[to(t)], output_of_cluster[from(t)]));
   return true;
 }
 
@@ -178,7 +177,7 @@ bool close_hole(const float* P, std::span<const uint32_t> loop, std::span<const 
 // options.close_hole_diameter, close instead.
 void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
                          std::span<const uint32_t> output_of_cluster, std::span<const uint32_t> cluster_size,
-                         const DualMeshOptions& options, DualMesh& dual, std::vector<Triple>& faces) {
+                         const DualMeshOptions& options, DualMesh& dual, std::vector<dual::Face>& faces) {
   const float* P = mesh.positions.data();
   dual.loops_skipped = loops.skipped;
   for (size_t l = 0; l + 1 < loops.offsets.size(); ++l) {
@@ -282,7 +281,7 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
       uint32_t a = output_of_cluster[labels[e.from]], b = output_of_cluster[labels[e.to]];
       uint32_t p = first_new + point_of_change[t];
       uint32_t p_next = first_new + point_of_change[(t + 1) % changes.size()];
-      faces.push_back(canonical_rotation(p, b, a));
+      faces.push_back(dual::rotate_smallest_first(p, b, a));
       if (p_next == p) continue;
       // Where the boundary bends inside b's stretch (corners), the chord p → p_next cuts them
       // and the triangle (p, p_next, b) can fold over b. Douglas–Peucker on the stretch: the
@@ -320,7 +319,7 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
         chain.insert(chain.begin() + std::ptrdiff_t(c + 1), q);
         chain_index.insert(chain_index.begin() + std::ptrdiff_t(c + 1), far);
       }
-      for (size_t c = 0; c + 1 < chain.size(); ++c) faces.push_back(canonical_rotation(chain[c], chain[c + 1], b));
+      for (size_t c = 0; c + 1 < chain.size(); ++c) faces.push_back(dual::rotate_smallest_first(chain[c], chain[c + 1], b));
     }
   }
 }
@@ -331,7 +330,7 @@ double typical_dual_edge(double area, uint32_t clusters) {
   return clusters > 0 && area > 0 ? std::sqrt(4.0 * area / (2.0 * clusters) / std::sqrt(3.0)) : 0.0;
 }
 
-std::vector<Triple> boundary_strip_faces(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
+std::vector<dual::Face> boundary_strip_faces(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
                                          uint32_t cluster_count, std::span<const uint32_t> cluster_size,
                                          const DualMeshOptions& options, uint32_t& strip_vertices) {
   // The strip code reads chord ends back from the output positions: give it a scratch dual
@@ -342,7 +341,7 @@ std::vector<Triple> boundary_strip_faces(const MeshView& mesh, const BoundaryLoo
   scratch.source_of_output_vertex.assign(cluster_count, {});
   std::vector<uint32_t> identity(cluster_count);
   std::iota(identity.begin(), identity.end(), 0u);
-  std::vector<Triple> faces;
+  std::vector<dual::Face> faces;
   add_boundary_strips(mesh, loops, labels, identity, cluster_size, options, scratch, faces);
   strip_vertices = scratch.mesh.vertex_count() - cluster_count;
   return faces;
@@ -365,12 +364,12 @@ DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, 
   // The triples in cluster ids, renumbered: output_of_cluster is increasing on the non-empty
   // clusters, so the renumbered triples stay rotated, sorted and unique.
   dual::Triples triples = dual::collect_triples(mesh, labels);
-  std::vector<Triple>& faces = triples.faces;
-  for (Triple& t : faces)
+  std::vector<dual::Face>& faces = triples.faces;
+  for (dual::Face& t : faces)
     for (uint32_t& x : t) x = output_of_cluster[x];
   uint64_t emitted = triples.emitted;
   if (options.boundary_strips) {
-    std::vector<Triple> strips;
+    std::vector<dual::Face> strips;
     if (boundary_loops) {
       add_boundary_strips(mesh, *boundary_loops, labels, output_of_cluster, cluster_size, options, dual, strips);
     } else {
@@ -378,15 +377,11 @@ DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, 
       add_boundary_strips(mesh, loops, labels, output_of_cluster, cluster_size, options, dual, strips);
     }
     emitted += strips.size();
-    std::sort(strips.begin(), strips.end());
-    const size_t interior = faces.size();
-    faces.insert(faces.end(), strips.begin(), strips.end());
-    std::inplace_merge(faces.begin(), faces.begin() + std::ptrdiff_t(interior), faces.end());
-    faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
+    dual::merge_faces(faces, std::move(strips));
   }
   dual.duplicate_faces_removed = emitted - faces.size();
   dual.mesh.triangles.reserve(faces.size() * 3);
-  for (const Triple& t : faces) dual.mesh.triangles.insert(dual.mesh.triangles.end(), t.begin(), t.end());
+  for (const dual::Face& t : faces) dual.mesh.triangles.insert(dual.mesh.triangles.end(), t.begin(), t.end());
   return dual;
 }
 
@@ -397,10 +392,10 @@ std::vector<uint32_t> find_manifold_defects(const TriangleSoupView& mesh) {
   std::vector<uint32_t> bad;
   // Faces with a repeated index flag their corners; the others go to the fan test as they are
   // (exact repeats included: the fan test flags an edge used twice in one direction).
-  std::vector<Triple> faces;
+  std::vector<dual::Face> faces;
   faces.reserve(F);
   for (uint64_t f = 0; f < F; ++f) {
-    const Triple t = {T[3 * f], T[3 * f + 1], T[3 * f + 2]};
+    const dual::Face t = {T[3 * f], T[3 * f + 1], T[3 * f + 2]};
     if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) bad.insert(bad.end(), t.begin(), t.end());
     else faces.push_back(t);
   }

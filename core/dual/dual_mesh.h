@@ -88,8 +88,8 @@ std::vector<std::array<uint32_t, 3>> boundary_strip_faces(const MeshView& mesh, 
 /// Output vertices involved in a defect of a triangle mesh: non-manifold edges (> 2 faces),
 /// edges used twice in the same direction, vertices whose faces do not form one fan,
 /// duplicate faces (same vertex set), degenerate faces (repeated index), vertices on no face.
-/// Sorted, unique.
-/// O(F log F).
+/// Sorted, unique. The fan test of core/dual/dual_topology.h (check_fans): O(F + V) plus a sort
+/// of each vertex's fan.
 std::vector<uint32_t> find_manifold_defects(const TriangleSoupView& mesh);
 
 struct DefectRemoval {
@@ -97,9 +97,10 @@ struct DefectRemoval {
 };
 
 /// Last resort after the clustering repair: deletes the faces around every defect vertex of
-/// find_manifold_defects (and then vertices left without faces), until none is left. Leaves
-/// small holes instead of non-manifold output. The per-output-vertex arrays (positions, clusters,
-/// sources) are compacted together, in order: the only place output vertices are removed.
+/// find_manifold_defects (and then vertices left without faces), until none is left (at most 64
+/// passes). Leaves small holes instead of non-manifold output. The per-output-vertex arrays
+/// (positions, clusters, sources) are compacted together, in order: the only place output
+/// vertices are removed.
 DefectRemoval remove_manifold_defects(DualMesh& dual);
 
 }  // namespace streamcvd

@@ -1,4 +1,5 @@
-// Dual triples by chunks and the fan test (core/dual/dual_topology.h).
+// Dual triples by chunks, their merge with the strip faces, and the fan test
+// (core/dual/dual_topology.h).
 #include "streamcvd/core/dual/dual_topology.h"
 
 #include <tbb/blocked_range.h>
@@ -16,6 +17,23 @@
 #include "streamcvd/core/mesh/errors.h"
 
 namespace streamcvd::dual {
+
+namespace {
+
+// The pair {a, b} of two distinct ids, packed smaller first (a << 32 | b for a < b).
+inline uint64_t pair_key(uint32_t a, uint32_t b) { return uint64_t(std::min(a, b)) << 32 | std::max(a, b); }
+
+// sort_unique with a parallel sort, for the merged lists (D-sized).
+template <class T>
+void parallel_sort_unique(std::vector<T>& v) {
+  tbb::parallel_sort(v.begin(), v.end());
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+}
+
+// The owner of face f: its least corner (faces are sorted by owner, DESIGN.md §2).
+uint32_t owner_of(const uint32_t* T, uint64_t f) { return std::min({T[3 * f], T[3 * f + 1], T[3 * f + 2]}); }
+
+}  // namespace
 
 std::vector<FaceRange> chunk_face_blocks(const MeshView& mesh, uint64_t max_faces) {
   const uint64_t F = mesh.face_count();
@@ -74,20 +92,13 @@ std::vector<uint32_t> cluster_sizes(const MeshView& mesh, std::span<const int32_
   return size;
 }
 
-// The owner of face f: its least corner (faces are sorted by owner, DESIGN.md §2).
-namespace {
-
-// The pair {a, b} of two distinct labels, packed smaller first.
-inline uint64_t label_pair(int32_t a, int32_t b) { return uint64_t(std::min(a, b)) << 32 | uint32_t(std::max(a, b)); }
-
-void sort_unique(std::vector<uint64_t>& v) {
-  std::sort(v.begin(), v.end());
-  v.erase(std::unique(v.begin(), v.end()), v.end());
+void merge_faces(std::vector<Face>& faces, std::vector<Face> more) {
+  std::sort(more.begin(), more.end());
+  const size_t before = faces.size();
+  faces.insert(faces.end(), more.begin(), more.end());
+  std::inplace_merge(faces.begin(), faces.begin() + std::ptrdiff_t(before), faces.end());
+  faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
 }
-
-}  // namespace
-
-static uint32_t owner_of(const uint32_t* T, uint64_t f) { return std::min({T[3 * f], T[3 * f + 1], T[3 * f + 2]}); }
 
 Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, bool neighbour_pairs) {
   const std::vector<FaceRange> blocks = chunk_face_blocks(mesh);
@@ -110,13 +121,11 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, b
         for (uint64_t f = blocks[i].begin; f < blocks[i].end; ++f)
           for (int k = 0; k < 3; ++k) {
             const int32_t a = labels[T[3 * f + k]], b = labels[T[3 * f + (k + 1) % 3]];
-            if (a >= 0 && b >= 0 && a != b) p.push_back(label_pair(a, b));
+            if (a >= 0 && b >= 0 && a != b) p.push_back(pair_key(uint32_t(a), uint32_t(b)));
           }
         sort_unique(p);
       }
-      // Neighbouring input faces often give the same triple: dedupe early, the merge is smaller.
-      std::sort(out.begin(), out.end());
-      out.erase(std::unique(out.begin(), out.end()), out.end());
+      sort_unique(out);  // neighbouring input faces often give the same triple: the merge is smaller
     }
   });
   Triples result;
@@ -130,15 +139,12 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, b
     result.faces.insert(result.faces.end(), f.begin(), f.end());
     std::vector<Face>().swap(f);
   }
-  tbb::parallel_sort(result.faces.begin(), result.faces.end());
-  result.faces.erase(std::unique(result.faces.begin(), result.faces.end()), result.faces.end());
+  parallel_sort_unique(result.faces);
   for (std::vector<uint64_t>& p : pairs) {
     result.neighbour_pairs.insert(result.neighbour_pairs.end(), p.begin(), p.end());
     std::vector<uint64_t>().swap(p);
   }
-  tbb::parallel_sort(result.neighbour_pairs.begin(), result.neighbour_pairs.end());
-  result.neighbour_pairs.erase(std::unique(result.neighbour_pairs.begin(), result.neighbour_pairs.end()),
-                               result.neighbour_pairs.end());
+  parallel_sort_unique(result.neighbour_pairs);
   return result;
 }
 
@@ -162,14 +168,12 @@ std::vector<Face> triples_around(const MeshView& mesh, std::span<const int32_t> 
           if (c[first] == v) out.push_back(t);
         }
       }
-      std::sort(out.begin(), out.end());
-      out.erase(std::unique(out.begin(), out.end()), out.end());
+      sort_unique(out);
     }
   });
   std::vector<Face> faces;
   for (std::vector<Face>& f : found) faces.insert(faces.end(), f.begin(), f.end());
-  tbb::parallel_sort(faces.begin(), faces.end());
-  faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
+  parallel_sort_unique(faces);
   return faces;
 }
 
@@ -180,10 +184,9 @@ std::vector<uint64_t> unjoined_pairs(std::span<const uint64_t> neighbour_pairs, 
   for (const Face& f : faces)
     for (int k = 0; k < 3; ++k) {
       const uint32_t a = f[k], b = f[(k + 1) % 3];
-      if (a < cluster_count && b < cluster_count) edges.push_back(uint64_t(std::min(a, b)) << 32 | std::max(a, b));
+      if (a < cluster_count && b < cluster_count) edges.push_back(pair_key(a, b));
     }
-  tbb::parallel_sort(edges.begin(), edges.end());
-  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  parallel_sort_unique(edges);
   std::vector<uint64_t> missing;
   std::set_difference(neighbour_pairs.begin(), neighbour_pairs.end(), edges.begin(), edges.end(),
                       std::back_inserter(missing));
@@ -202,7 +205,7 @@ std::vector<uint64_t> neighbour_pairs_around(const MeshView& mesh, std::span<con
         const int32_t a = labels[vertices[i]];
         if (a < 0) continue;
         for (uint32_t n : mesh.neighbours(vertices[i]))
-          if (labels[n] >= 0 && labels[n] != a) out.push_back(label_pair(a, labels[n]));
+          if (labels[n] >= 0 && labels[n] != a) out.push_back(pair_key(uint32_t(a), uint32_t(labels[n])));
       }
       sort_unique(out);  // a pair repeats along a whole frontier
     }

@@ -1,9 +1,9 @@
 // The topology of a clustering's dual mesh (paper §VI-C) as a K-sized list of oriented triples
 // of cluster ids, and the manifold test on such a list: the one mechanism behind
-// build_dual_mesh, find_manifold_defects (core/dual/dual_mesh.cpp) and the checks of the repair loop
-// (core/dual/repair.cpp). The input mesh is read chunk by chunk (DESIGN.md §6): each chunk emits the
-// triples of the faces it owns, the K-sized list is deduplicated by one sort; nothing is sized
-// by V or F. Internal to core/.
+// build_dual_mesh, find_manifold_defects (core/dual/dual_mesh.cpp) and the checks of the repair
+// loop (core/dual/defect_tracker.cpp). The input mesh is read chunk by chunk (DESIGN.md §6): each
+// chunk emits the triples of the faces it owns, the K-sized list is deduplicated by one sort;
+// nothing is sized by V or F. Internal to core/.
 #pragma once
 
 #include <algorithm>
@@ -37,6 +37,18 @@ inline bool face_triple(const uint32_t* t, std::span<const int32_t> labels, Face
   out = rotate_smallest_first(uint32_t(a), uint32_t(b), uint32_t(c));
   return true;
 }
+
+/// Sorts `v` and drops its repeated entries. O(n log n), serial.
+template <class T>
+void sort_unique(std::vector<T>& v) {
+  std::sort(v.begin(), v.end());
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+}
+
+/// Adds `more` (any order, repeats allowed) to `faces` (sorted, unique) so that it stays sorted
+/// and unique: how the strip faces join the interior ones, in build_dual_mesh and in the repair's
+/// checks. O(D + S log S) for D faces and S more.
+void merge_faces(std::vector<Face>& faces, std::vector<Face> more);
 
 /// Faces [begin, end) of one block of chunk-wise work.
 struct FaceRange {

@@ -1,3 +1,5 @@
+// The quality post-pass (core/dual/mesh_optimize.h): half-edge twins, max-min Q flips, tangential
+// relaxation and the projection back onto the input by a walk in its faces.
 #include "streamcvd/core/dual/mesh_optimize.h"
 
 #include <algorithm>
@@ -8,6 +10,7 @@
 
 #include "streamcvd/core/mesh/bvh.h"
 #include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/mesh/triangle_quality.h"
 #include "streamcvd/core/mesh/vec3.h"
 
 namespace streamcvd {
@@ -19,17 +22,7 @@ using namespace vec3;  // Vec3, sub, add, scale, dot, cross, norm, unit, point
 // Twice the area vector of (a, b, c): its direction is the face normal.
 Vec3 area_vector(const Vec3& a, const Vec3& b, const Vec3& c) { return cross(sub(b, a), sub(c, a)); }
 
-// Q = 6/√3 · area / (half-perimeter · longest edge) (DESIGN.md §9), 1 for an equilateral triangle.
-double quality(const Vec3& a, const Vec3& b, const Vec3& c) {
-  const double l0 = norm(sub(b, a)), l1 = norm(sub(c, b)), l2 = norm(sub(a, c));
-  const double area = 0.5 * norm(area_vector(a, b, c));
-  const double denom = 0.5 * (l0 + l1 + l2) * std::max({l0, l1, l2});
-  return denom > 0 ? 6.0 / std::sqrt(3.0) * area / denom : 0.0;
-}
-
 constexpr int64_t kNoTwin = -1;
-// Triangles below this Q are slivers: their normal is unreliable (see free_vertices).
-constexpr double kSliverQuality = 0.2;
 
 uint32_t next_in_face(uint32_t h) { return h - h % 3 + (h + 1) % 3; }
 uint32_t prev_in_face(uint32_t h) { return h - h % 3 + (h + 2) % 3; }
@@ -80,7 +73,7 @@ struct Work {
 };
 
 double face_quality(const Work& w, size_t f) {
-  return quality(point(w.P, w.T[3 * f]), point(w.P, w.T[3 * f + 1]), point(w.P, w.T[3 * f + 2]));
+  return triangle_quality(point(w.P, w.T[3 * f]), point(w.P, w.T[3 * f + 1]), point(w.P, w.T[3 * f + 2]));
 }
 
 // True when vertex c already has neighbour d, or when c's faces do not form one fan (a
@@ -134,7 +127,7 @@ bool try_flip(Work& w, uint32_t h) {
   const bool sliver = std::min(w.q[f], w.q[g]) < kSliverQuality;
   if (!sliver && dot(nf, ng) < w.cos_max_dihedral) return false;
   const double q_old = std::min(w.q[f], w.q[g]);
-  const double q1 = quality(pa, pd, pc), q2 = quality(pd, pb, pc);
+  const double q1 = triangle_quality(pa, pd, pc), q2 = triangle_quality(pd, pb, pc);
   // A relative margin: equal-quality pairs (a square's two diagonals) must not flip back and forth.
   if (std::min(q1, q2) <= q_old * (1 + 1e-6) + 1e-12) return false;
   // The new pair must be as flat as the old and keep its orientation: no fold, no zero area.
@@ -265,7 +258,7 @@ uint64_t relax_sweep(Work& w, std::span<const uint32_t> vf_offsets, std::span<co
       // Slivers may turn (that is how they fatten) but not fold over.
       ok = dot(unit(area_vector(target, u, x)), old_normal[i]) >=
            (w.q[ring[i]] >= kSliverQuality ? params.cos_normal_change : 1e-3);
-      const double q = quality(target, u, x);
+      const double q = triangle_quality(target, u, x);
       q_min_new = std::min(q_min_new, q);
       q_sum_new += q;
     }
@@ -372,7 +365,7 @@ double average_triangle_quality(std::span<const float> positions, std::span<cons
   if (F == 0) return 0;
   double sum = 0;
   for (size_t f = 0; f < F; ++f)
-    sum += quality(point(positions, triangles[3 * f]), point(positions, triangles[3 * f + 1]),
+    sum += triangle_quality(point(positions, triangles[3 * f]), point(positions, triangles[3 * f + 1]),
                    point(positions, triangles[3 * f + 2]));
   return sum / double(F);
 }

@@ -1,3 +1,5 @@
+// Output vertex placement and per-cluster tables (core/dual/placement.h): each a TBB pass over
+// the input vertices or faces with K-sized atomic minima, the same result on any thread count.
 #include "streamcvd/core/dual/placement.h"
 
 #include <atomic>

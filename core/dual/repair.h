@@ -3,10 +3,12 @@
 // cluster: a cluster enclosed by one other (an island), wrapping a tube or a hole (fewer than
 // three neighbours), meeting a neighbour along two separate frontiers, or ringing a group of
 // clusters at a thin neck (a frontier that meets no third cluster: no dual edge, so the output
-// would come apart there although the dual stays manifold). The repair splits
-// such clusters in two and dissolves islands into their surrounding cluster, and keeps the
-// cluster count N exact by merging the lightest adjacent pairs far from any defect (or
-// splitting the heaviest clusters). Constrained clustering then relaxes the touched region.
+// would come apart there although the dual stays manifold). The repair splits such clusters in
+// two and dissolves islands into their surrounding cluster, and keeps the cluster count N exact
+// by merging the lightest adjacent pairs far from any defect (or splitting the heaviest
+// clusters). Constrained clustering then relaxes the touched region. Its parts: the defect
+// check (core/dual/defect_tracker.h), the edits (core/dual/cluster_repair.h), the shared label
+// state (core/dual/repair_state.h); core/dual/repair.cpp runs the loop.
 #pragma once
 
 #include <cstdint>
@@ -20,24 +22,6 @@
 #include "streamcvd/core/mesh/mesh_view.h"
 
 namespace streamcvd {
-
-struct RepairRoundStats {
-  uint32_t splits = 0, dissolved_islands = 0, merges = 0;
-};
-
-/// Scratch of split_cluster, reused across splits: stamps indexed by member position (sized by
-/// the cluster, never by V) and the BFS queue.
-struct SplitScratch {
-  std::vector<uint32_t> stamp, queue;
-  uint32_t next_mark = 1;
-};
-
-/// Splits the cluster whose vertices are `members` (all of them, ascending) into up to
-/// new_labels.size() + 1 connected parts grown by BFS from farthest-point seeds; part k > 0
-/// takes new_labels[k − 1]. Returns the number of new labels used (0: the cluster could not be
-/// split). O(cluster size · parts · log cluster size); reads only the members and their 1-rings.
-uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
-                       std::span<const int32_t> new_labels, SplitScratch& scratch);
 
 struct DefectRepairOptions {
   uint32_t max_rounds = 40;     ///< repair rounds at most (RemeshOptions::repair_rounds)
@@ -68,9 +52,9 @@ struct DefectRepairResult {
 
 /// The repair loop: finds the clusters on and around dual-mesh defects (same defects as
 /// find_manifold_defects on the built dual, strips included, plus input-adjacent cluster pairs
-/// with no dual edge, dual::unjoined_pairs), repairs them (splits in two,
-/// islands dissolved, the cluster count kept by merging light pairs far from any defect or
-/// splitting heavy clusters), and re-checks only the dual around the vertices whose label
+/// with no dual edge, dual::unjoined_pairs), repairs them (splits in two, islands dissolved,
+/// the cluster count kept by merging light pairs far from any defect or splitting heavy
+/// clusters), and re-checks only the dual around the vertices whose label
 /// changed, until no defect is left or max_rounds. Then relaxes the repaired clusters
 /// (constrained pass), keeping the relaxation only if the dual stays defect-free. Labels only:
 /// the dual's topology does not depend on vertex positions.

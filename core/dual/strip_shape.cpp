@@ -1,3 +1,5 @@
+// Strip shaping (core/dual/strip_shape.h): slides strip vertices along the input boundary and
+// moves the cluster vertices around them to lower Σ 1/Q over their fans.
 #include "streamcvd/core/dual/strip_shape.h"
 
 #include <algorithm>
@@ -6,8 +8,9 @@
 #include <numbers>
 #include <vector>
 
-#include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/core/dual/mesh_optimize.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/mesh/triangle_quality.h"
 #include "streamcvd/core/mesh/vec3.h"
 
 namespace streamcvd {
@@ -17,16 +20,6 @@ namespace {
 using namespace vec3;  // Vec3, sub, add, scale, dot, cross, norm, unit, point
 // What the output will hold: the candidate rounded to float32, so the Q judged is the Q written.
 Vec3 as_float(const Vec3& p) { return {double(float(p[0])), double(float(p[1])), double(float(p[2]))}; }
-
-// Q = 6/√3 · area / (half-perimeter · longest edge), as core/dual/mesh_optimize.cpp and `quality`.
-double quality(const Vec3& a, const Vec3& b, const Vec3& c) {
-  const double l0 = norm(sub(b, a)), l1 = norm(sub(c, b)), l2 = norm(sub(a, c));
-  const double area = 0.5 * norm(cross(sub(b, a), sub(c, a)));
-  const double denom = 0.5 * (l0 + l1 + l2) * std::max({l0, l1, l2});
-  return denom > 0 ? 6.0 / std::sqrt(3.0) * area / denom : 0.0;
-}
-
-constexpr double kSliverQuality = 0.2;  // below it a face's normal says nothing (mesh_optimize.cpp)
 
 // Distance from q to the segment a-b.
 double segment_distance(const Vec3& q, const Vec3& a, const Vec3& b) {
@@ -83,13 +76,13 @@ FanScore fan_score(const Strip& st, uint32_t v, const Vec3& p, const Vec3& n, do
     const int kv = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
     const Vec3 u = point(st.P, t[(kv + 1) % 3]), x = point(st.P, t[(kv + 2) % 3]);
     const Vec3 n_new = cross(sub(u, p), sub(x, p)), n_old = cross(sub(u, old), sub(x, old));
-    const double q_old = quality(old, u, x);
+    const double q_old = triangle_quality(old, u, x);
     if (q_old >= kSliverQuality) {
       if (dot(unit(n_new), unit(n_old)) < (st.strip_face[f] ? cos_turn_strip : cos_turn)) return {};
     } else if (dot(n_new, n) <= 0) {
       return {};
     }
-    const double q = quality(p, u, x);
+    const double q = triangle_quality(p, u, x);
     score.q_min = std::min(score.q_min, q);
     score.q_sum += q;
     score.inv_sum += 1 / std::max(q, 1e-6);
@@ -202,7 +195,7 @@ bool move_cluster_vertex(Strip& st, uint32_t v, uint32_t& surface_face, const Ve
     // (v, u, x) turns around the normal, so v's side of u → x is normal × (x − u).
     const Vec3 apex = add(scale(add(u, x), 0.5), scale(unit(cross(normal, sub(x, u))), std::sqrt(3.0) / 2 * norm(sub(x, u))));
     apex_mean = add(apex_mean, apex);
-    const double q = quality(p, u, x);
+    const double q = triangle_quality(p, u, x);
     if (q < worst) worst = q, worst_apex = apex;
   }
   mean = scale(mean, 1.0 / double(ring.size()));
@@ -258,7 +251,7 @@ StripQuality strip_face_quality(std::span<const float> positions, std::span<cons
   const size_t F = triangles.size() / 3;
   for (size_t f = 0; f < F; ++f) {
     const uint32_t* t = &triangles[3 * f];
-    const double q = quality(point(positions, t[0]), point(positions, t[1]), point(positions, t[2]));
+    const double q = triangle_quality(point(positions, t[0]), point(positions, t[1]), point(positions, t[2]));
     if (cluster_of_output_vertex[t[0]] < 0 || cluster_of_output_vertex[t[1]] < 0 || cluster_of_output_vertex[t[2]] < 0) {
       ++r.strip_faces;
       strip_sum += q;
@@ -389,7 +382,7 @@ void shape_round(DualMesh& dual, const MeshView& surface, const BoundaryLoops& l
     src.count = count;
     src.t = float(pl.s - k);
   }
-  }
+}
 
 }  // namespace
 

@@ -62,9 +62,9 @@ StripQuality strip_face_quality(std::span<const float> positions, std::span<cons
 /// Improves the shape of the boundary strips of `dual` in place. Strip vertices with one or two
 /// sources on `loops` (an edge midpoint or a corner: VertexSource) and exactly two boundary
 /// neighbours slide along their loop; their sources are updated to the input edge (or vertex)
-/// they end on. Cluster vertices with movable[v] ≠ 0 that are interior and next to such a strip
-/// vertex move on `surface`, from the input face surface_face[v] (updated; UINT32_MAX = does not
-/// move). A move is kept only when it lowers Σ 1/Q over the vertex's faces, folds none of
+/// they end on. Cluster vertices with movable[v] ≠ 0 that are interior and within options.rings
+/// rings of a strip vertex move on `surface`, from the input face surface_face[v] (updated;
+/// UINT32_MAX = does not move). A move is kept only when it lowers Σ 1/Q over the vertex's faces, folds none of
 /// them against the surface normal and turns no well-shaped face off the strip more than the
 /// limit. movable and surface_face hold one entry per output vertex; throws InputError
 /// otherwise. O(strip size · sweeps · fan size) plus O(F) set-up. Deterministic (fixed order).

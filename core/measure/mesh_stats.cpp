@@ -24,6 +24,7 @@
 
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/core/mesh/topology_conventions.h"
+#include "streamcvd/core/mesh/triangle_quality.h"
 
 #include <oneapi/tbb/blocked_range.h>
 #include <oneapi/tbb/parallel_for.h>
@@ -313,7 +314,7 @@ struct QualityAccumulator {
 };
 
 /// Q and the three angles (degrees) of face f; a degenerate face gives Q = 0, (0°, 0°, 180°).
-void triangle_quality(const TriangleSoupView& m, uint64_t f, double eps, double& q, double (&angle)[3]) {
+void face_quality(const TriangleSoupView& m, uint64_t f, double eps, double& q, double (&angle)[3]) {
   double p[3][3];
   for (int k = 0; k < 3; ++k)
     for (int i = 0; i < 3; ++i) p[k][i] = m.positions[3 * size_t(m.triangles[3 * f + k]) + i];
@@ -342,9 +343,8 @@ void triangle_quality(const TriangleSoupView& m, uint64_t f, double eps, double&
   // for needles where acos of a normalised dot would lose it.
   for (int k = 0; k < 2; ++k) angle[k] = std::atan2(area2, dot[k]) * (180.0 / M_PI);
   angle[2] = std::max(0.0, 180.0 - angle[0] - angle[1]);
-  const double half_perimeter = 0.5 * (len[0] + len[1] + len[2]);
-  const double longest = std::max({len[0], len[1], len[2]});
-  q = 6.0 / std::sqrt(3.0) * (0.5 * area2) / (half_perimeter * longest);
+  // Unguarded: degenerate faces left above (a NaN corner gives NaN, not 0).
+  q = quality_from(0.5 * area2, quality_denominator(len[0], len[1], len[2]));
 }
 
 }  // namespace
@@ -364,7 +364,7 @@ QualityStats compute_quality(const TriangleSoupView& mesh) {
       [&](const tbb::blocked_range<uint64_t>& r, QualityAccumulator a) {
         for (uint64_t f = r.begin(); f != r.end(); ++f) {
           double q, angle[3];
-          triangle_quality(mesh, f, eps, q, angle);
+          face_quality(mesh, f, eps, q, angle);
           a.add(q, angle);
         }
         return a;
@@ -426,7 +426,7 @@ QualityStats compute_quality(const TriangleSoupView& mesh) {
   s.q_min_boundary = std::numeric_limits<double>::infinity();
   for (uint64_t f = 0; f < nf; ++f) {
     double q, angle[3];
-    triangle_quality(mesh, f, eps, q, angle);
+    face_quality(mesh, f, eps, q, angle);
     if ((mark[tri[3 * f]] | mark[tri[3 * f + 1]] | mark[tri[3 * f + 2]]) & kOnBoundary) {
       ++s.boundary_triangles;
       q_boundary += q;

@@ -1,0 +1,75 @@
+// The edits of the repair loop (core/dual/repair.cpp): split_cluster, and ClusterRepair, one
+// round of splits, island dissolutions and compensating merges or splits over the clusters the
+// defect tracker (core/dual/defect_tracker.h) reports. Every label goes through the
+// LabelEditor (core/dual/repair_state.h). Internal to core/dual.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <unordered_map>
+#include <vector>
+
+#include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/dual/repair_state.h"
+#include "streamcvd/core/mesh/mesh_view.h"
+
+namespace streamcvd::detail {
+
+struct RepairRoundStats {
+  uint32_t splits = 0, dissolved_islands = 0, merges = 0;
+};
+
+/// Scratch of split_cluster, reused across splits: stamps indexed by member position (sized by
+/// the cluster, never by V) and the BFS queue.
+struct SplitScratch {
+  std::vector<uint32_t> stamp, queue;
+  uint32_t next_mark = 1;
+};
+
+/// Splits the cluster whose vertices are `members` (all of them, ascending) into up to
+/// new_labels.size() + 1 connected parts grown by BFS from farthest-point seeds; part k > 0
+/// takes new_labels[k − 1]. Returns the number of new labels used (0: the cluster could not be
+/// split). O(cluster size · parts · log cluster size); reads only the members and their 1-rings.
+uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
+                       std::span<const int32_t> new_labels, SplitScratch& scratch);
+
+/// One repair round at a time with state that persists across rounds: per-cluster weights and
+/// boundary contact (refreshed for the clusters whose members changed), and K-sized flag arrays
+/// cleared through their lists. Memory O(K) plus the members of the clusters a round reads.
+/// Not thread-safe (its refresh runs TBB-parallel inside).
+class ClusterRepair {
+ public:
+  /// Weighs every cluster once: O(V) reads, parallel over the clusters.
+  ClusterRepair(const MeshView& mesh, const ItemData& items, LabelEditor& labels, uint32_t K,
+                std::span<const uint8_t> adjustable);
+
+  /// Splits in two and dissolves the clusters of `defect_clusters` (sorted, unique), and changes
+  /// the number of non-empty clusters by `count_change` with compensating merges or splits (0:
+  /// the count stays). With `keep_strips` those compensations only touch clusters off the
+  /// boundary, so the strip vertices of the dual stay as they are. Returns the clusters changed
+  /// (sorted, unique). O(vertices of the clusters it reads and their 1-rings) + a few O(K) scans.
+  std::vector<int32_t> round(std::span<const int32_t> defect_clusters, int64_t count_change, bool keep_strips,
+                             RepairRoundStats& stats);
+
+ private:
+  void refresh(std::span<const int32_t> clusters);
+  std::span<const uint32_t> members_of(int32_t c);
+  void neighbour_clusters(int32_t c, std::vector<int32_t>& out);
+  std::span<const int32_t> neighbours_now(int32_t c, std::vector<int32_t>& fresh);
+  uint32_t size_of(int32_t c);
+
+  const MeshView& mesh_;
+  const ItemData& items_;
+  LabelEditor& labels_;
+  const uint32_t K_;
+  std::span<const uint8_t> adjustable_;
+  std::vector<double> weight_;
+  std::vector<uint8_t> touches_boundary_;
+  ClusterSet is_defect_, near_, used_, beside_merge_;
+  std::vector<int32_t> partner_;
+  std::unordered_map<int32_t, std::vector<uint32_t>> round_members_;
+  std::unordered_map<int32_t, std::vector<int32_t>> round_neighbours_;  // merge candidates' lists
+  SplitScratch scratch_;
+};
+
+}  // namespace streamcvd::detail

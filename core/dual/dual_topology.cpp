@@ -30,8 +30,6 @@ void parallel_sort_unique(std::vector<T>& v) {
   v.erase(std::unique(v.begin(), v.end()), v.end());
 }
 
-// The owner of face f: its least corner (faces are sorted by owner, DESIGN.md §2).
-uint32_t owner_of(const uint32_t* T, uint64_t f) { return std::min({T[3 * f], T[3 * f + 1], T[3 * f + 2]}); }
 
 }  // namespace
 
@@ -112,7 +110,8 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, b
       Face t;
       if (blocks[i].end <= blocks[i].begin) continue;
       // Faces are sorted by owner (their least corner): the block's owners form one range.
-      const RangeVisit visit(mesh, "dual", {owner_of(T, blocks[i].begin), owner_of(T, blocks[i].end - 1) + 1}, kReadsTriangles);
+      const VertexRange owners{face_owner(mesh.triangles, blocks[i].begin), face_owner(mesh.triangles, blocks[i].end - 1) + 1};
+      const RangeVisit visit(mesh, "dual", owners, kReadsTriangles);
       for (uint64_t f = blocks[i].begin; f < blocks[i].end; ++f)
         if (face_triple(T + 3 * f, labels, t)) out.push_back(t);
       emitted[i] = out.size();

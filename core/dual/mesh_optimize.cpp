@@ -12,6 +12,7 @@
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/core/mesh/triangle_quality.h"
 #include "streamcvd/core/mesh/vec3.h"
+#include "streamcvd/core/mesh/vertex_faces.h"
 
 namespace streamcvd {
 
@@ -26,17 +27,6 @@ constexpr int64_t kNoTwin = -1;
 
 uint32_t next_in_face(uint32_t h) { return h - h % 3 + (h + 1) % 3; }
 uint32_t prev_in_face(uint32_t h) { return h - h % 3 + (h + 2) % 3; }
-
-// Vertex-to-face CSR of the current triangles (rebuilt after each flip pass).
-void build_vertex_faces(std::span<const uint32_t> T, size_t V, std::vector<uint32_t>& offsets,
-                        std::vector<uint32_t>& faces) {
-  offsets.assign(V + 1, 0);
-  for (uint32_t v : T) ++offsets[v + 1];
-  for (size_t v = 0; v < V; ++v) offsets[v + 1] += offsets[v];
-  faces.resize(T.size());
-  std::vector<uint32_t> fill(offsets.begin(), offsets.end() - 1);
-  for (size_t h = 0; h < T.size(); ++h) faces[fill[T[h]]++] = uint32_t(h / 3);
-}
 
 // Twin half-edge of every half-edge h = 3f + k (edge T[h] → T[next_in_face(h)]); kNoTwin on
 // boundary edges, non-manifold edges (more than two faces) and edges used twice in the same

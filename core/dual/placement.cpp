@@ -82,9 +82,9 @@ void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels
   // Face by face (in store order: by owner), each tested against the site of every cluster
   // among its corners.
   const uint64_t F = mesh.face_count();
-  auto owner = [&](uint64_t f) { return std::min({T[3 * f], T[3 * f + 1], T[3 * f + 2]}); };
   tbb::parallel_for(tbb::blocked_range<uint64_t>(0, F, 1u << 15), [&](const tbb::blocked_range<uint64_t>& r) {
-    const RangeVisit visit(mesh, "placement", {owner(r.begin()), owner(r.end() - 1) + 1}, kReadsPositions | kReadsTriangles);
+    const RangeVisit visit(mesh, "placement", {face_owner(mesh.triangles, r.begin()), face_owner(mesh.triangles, r.end() - 1) + 1},
+                           kReadsPositions | kReadsTriangles);
     for (uint64_t f = r.begin(); f != r.end(); ++f) {
       const std::array<std::array<double, 3>, 3> p = {corner(P, T[3 * f]), corner(P, T[3 * f + 1]), corner(P, T[3 * f + 2])};
       const int32_t l[3] = {labels[T[3 * f]], labels[T[3 * f + 1]], labels[T[3 * f + 2]]};

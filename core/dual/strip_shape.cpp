@@ -12,6 +12,7 @@
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/core/mesh/triangle_quality.h"
 #include "streamcvd/core/mesh/vec3.h"
+#include "streamcvd/core/mesh/vertex_faces.h"
 
 namespace streamcvd {
 
@@ -276,14 +277,7 @@ void shape_round(DualMesh& dual, const MeshView& surface, const BoundaryLoops& l
   Strip st{surface, loops, mesh.positions, mesh.triangles};
   const std::span<const uint32_t> T = mesh.triangles;
   const size_t F = T.size() / 3;
-  st.vf_offsets.assign(V + 1, 0);
-  for (uint32_t v : T) ++st.vf_offsets[v + 1];
-  for (uint32_t v = 0; v < V; ++v) st.vf_offsets[v + 1] += st.vf_offsets[v];
-  st.vf.resize(T.size());
-  {
-    std::vector<uint32_t> fill(st.vf_offsets.begin(), st.vf_offsets.end() - 1);
-    for (size_t h = 0; h < T.size(); ++h) st.vf[fill[T[h]]++] = uint32_t(h / 3);
-  }
+  build_vertex_faces(T, V, st.vf_offsets, st.vf);
   // Output boundary edges (used by one face) and each vertex's boundary neighbours.
   std::vector<uint64_t> edges(T.size());
   for (size_t h = 0; h < T.size(); ++h) {

@@ -31,7 +31,7 @@ uint64_t first_owned_face(const MeshView& mesh, uint32_t v) {
   uint64_t lo = 0, hi = mesh.face_count();
   while (lo < hi) {
     const uint64_t mid = lo + (hi - lo) / 2;
-    const uint32_t owner = std::min({mesh.triangles[3 * mid], mesh.triangles[3 * mid + 1], mesh.triangles[3 * mid + 2]});
+    const uint32_t owner = face_owner(mesh.triangles, mid);
     if (owner < v) lo = mid + 1;
     else hi = mid;
   }
@@ -65,7 +65,7 @@ std::vector<ComponentShape> input_component_shapes(const MeshView& mesh, std::sp
     // The faces these vertices own (faces are sorted by owner, their smallest vertex).
     const uint64_t f_end = r.end() < mesh.vertex_count() ? first_owned_face(mesh, r.end()) : mesh.face_count();
     for (uint64_t f = first_owned_face(mesh, r.begin()); f < f_end; ++f) {
-      const uint32_t owner = std::min({mesh.triangles[3 * f], mesh.triangles[3 * f + 1], mesh.triangles[3 * f + 2]});
+      const uint32_t owner = face_owner(mesh.triangles, f);
       const uint32_t c = component_of_vertex[owner];
       if (c == kNone) continue;
       ++shapes[c].euler;

@@ -1,4 +1,5 @@
 #include "streamcvd/core/mesh/flat_faces.h"
+#include "streamcvd/core/mesh/vertex_faces.h"
 
 #include <algorithm>
 #include <array>
@@ -38,17 +39,7 @@ constexpr uint32_t kRemoved = UINT32_MAX;
 struct VertexFaces {
   std::vector<uint32_t> offsets, faces;
 
-  VertexFaces(std::span<const uint32_t> T, size_t V) : offsets(V + 1, 0) {
-    for (size_t f = 0; f < T.size(); f += 3)
-      if (T[f] != kRemoved)
-        for (int i = 0; i < 3; ++i) ++offsets[T[f + i] + 1];
-    for (size_t v = 0; v < V; ++v) offsets[v + 1] += offsets[v];
-    faces.resize(offsets[V]);
-    std::vector<uint32_t> next(offsets.begin(), offsets.end() - 1);
-    for (size_t f = 0; f < T.size(); f += 3)
-      if (T[f] != kRemoved)
-        for (int i = 0; i < 3; ++i) faces[next[T[f + i]]++] = uint32_t(f / 3);
-  }
+  VertexFaces(std::span<const uint32_t> T, size_t V) { build_vertex_faces(T, V, offsets, faces, kRemoved); }
   std::span<const uint32_t> of(uint32_t v) const { return {faces.data() + offsets[v], offsets[v + 1] - offsets[v]}; }
 };
 

@@ -3,6 +3,8 @@
 // so every algorithm runs unchanged in core and out of core.
 #pragma once
 
+#include <algorithm>
+
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -15,6 +17,12 @@ enum VertexFlag : uint8_t {
   kVertexNonManifold = 1u << 1,  ///< on a non-manifold edge, or its face fan is not one disc/half-disc
   kVertexIsolated = 1u << 2,     ///< referenced by no face
 };
+
+/// The owner of face f of a store's triangle array: its smallest-index corner. A store's faces
+/// are sorted by owner, so a face range maps to a vertex range. O(1).
+inline uint32_t face_owner(std::span<const uint32_t> triangles, uint64_t f) {
+  return std::min({triangles[3 * f], triangles[3 * f + 1], triangles[3 * f + 2]});
+}
 
 /// One contiguous slice of the store: vertices [vertex_begin, vertex_end) and the faces they own
 /// (a face is owned by its smallest-index vertex, faces sorted by owner) in [face_begin, face_end).

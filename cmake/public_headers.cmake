@@ -4,6 +4,7 @@ set(STREAMCVD_PUBLIC_HEADERS
   core/clustering/cluster_energy.h
   core/clustering/clustering.h
   core/clustering/item_data.h
+  core/clustering/sampling.h
   core/dual/dual_mesh.h
   core/dual/mesh_optimize.h
   core/measure/mesh_stats.h

@@ -1,5 +1,6 @@
 // Algorithm 1 of the paper (boundary-edge FIFO minimisation), the cleaning step and the
-// connectivity-constrained pass (§VI-A, §VI-B).
+// connectivity-constrained pass (§VI-A, §VI-B). The loops themselves are in
+// parallel_clustering.cpp (one code path for any thread count).
 #include "streamcvd/core/clustering/clustering.h"
 
 #include <algorithm>
@@ -20,13 +21,6 @@ double clustering_energy(const ItemData& items, std::span<const ClusterSums> sum
   ClusterState s;
   s.iso.assign(sums.begin(), sums.end());
   return state_energy(items, s);
-}
-
-uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels, ClusterState& state,
-                              const LoopOptions& options, ClusteringReport& report,
-                              std::span<const uint8_t> initially_active) {
-  // One code path: a single thread runs the same region visits, one region after the other.
-  return run_parallel_clustering_loops(mesh, items, labels, state, options, report, initially_active);
 }
 
 LoopOptions loop_options(const ClusteringOptions& options) {

@@ -197,8 +197,8 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
   ClusteringOptions clustering = options.clustering;
   uint32_t loops = 0;  // over every pass: the display counts the stage's loops
   if (progress)
-    clustering.on_loop = [&progress, &loops, user = options.clustering.on_loop](bool constrained, uint32_t loop,
-                                                                               uint64_t moves) {
+    clustering.loops.on_loop = [&progress, &loops, user = options.clustering.loops.on_loop](
+                                   bool constrained, uint32_t loop, uint64_t moves) {
       if (user) user(constrained, loop, moves);
       progress->round(++loops + 1, "loop");
     };
@@ -214,7 +214,7 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
     const double cpu0 = process_cpu_seconds();
     const uint32_t K = result.budget.total_clusters;
     if (progress) progress->round(loops + 1, "loop");
-    result.clustering = lloyd ? lloyd_clustering(mesh, items, labels, K, lloyd_options(clustering))
+    result.clustering = lloyd ? lloyd_clustering(mesh, items, labels, K, clustering)
                               : minimize_clustering(mesh, items, labels, K, clustering);
     if (progress) progress->round(std::max(loops, 1u), "loop");  // the last loop ran, no next one
     result.seconds.clustering += seconds_since(t0);
@@ -315,8 +315,7 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
   t = std::chrono::steady_clock::now();
   // The sites of the final clustering under its metric: centroid, anisotropic centroid, or
   // QEM point. Computed once, for the dual and for the final placement below.
-  ClusterState state = make_cluster_state(items, labels, K, metric, options.clustering.qem_threshold);
-  update_site_offsets(state);
+  ClusterState state = solved_cluster_state(items, labels, K, options.clustering);
   result.final_energy = state_energy(items, state);
   std::vector<double> z = cluster_sites(items, state);
   DualMesh dual = build_dual_mesh(mesh, labels, K, z, dual_options, &boundary_loops);

@@ -30,7 +30,7 @@ struct RemeshOptions {
   /// some seeds need 13–32 rounds (a round fixes most defects but its splits make new ones);
   /// 12 left those to the cleanup, which deletes faces and vertices. Rounds cost O(V) each.
   uint32_t repair_rounds = 40;
-  ClusteringOptions clustering;
+  ClusteringOptions clustering;  ///< metric, algorithm and loops; the defaults are the CLI's (IQ, all cores)
   std::vector<float> density;  ///< optional ρ per vertex (size V), empty = uniform
   /// Gradation γ of eq. 20: ρ_j multiplied by the clamped curvature magnitude to the power γ
   /// (0 = uniform). With A/AQ it shapes only the initial sampling, as in the paper.
@@ -110,9 +110,10 @@ struct RemeshResult {
 /// AQ; §V). The output vertex of each cluster is its site: the centroid projected onto the
 /// surface (I, A) or the QEM point (IQ, AQ); strips add vertices along boundaries. Checks the dual for
 /// non-manifold edges/vertices, isolated vertices and duplicate faces, and repairs the
-/// clustering around each defect (core/dual/repair.h, up to repair_rounds). Deterministic for a seed with
-/// clustering.threads = 1 (default) or clustering.deterministic (any thread count); otherwise
-/// the parallel clustering may differ between runs (core/clustering/parallel_clustering.h).
+/// clustering around each defect (core/dual/repair.h, up to repair_rounds). Deterministic for a
+/// seed with clustering.loops.threads = 1 or clustering.loops.deterministic (any thread count);
+/// otherwise (the default: all cores) the parallel clustering may differ between runs
+/// (core/clustering/parallel_clustering.h).
 /// Arrays sized by the input come from `storage` (RAM, or the pipeline's work files).
 RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArrayStorage& storage = ram_storage());
 

@@ -311,7 +311,6 @@ nlohmann::json remesh_report(const PipelineResult& r, const PipelineOptions& opt
   const std::string subdivide = options.subdivide < 0    ? "auto"
                             : options.subdivide == 0 ? "none"
                                                      : std::to_string(options.subdivide);
-  const bool lloyd = o.clustering.algorithm == ClusteringOptions::Algorithm::Lloyd;
   nlohmann::json j;
   j["input"] = {{"file", job.input},
                 {"vertices", r.input.vertices},
@@ -324,17 +323,17 @@ nlohmann::json remesh_report(const PipelineResult& r, const PipelineOptions& opt
                 {"remeshed_faces", r.remeshed_faces}};
   if (r.input_build.topology_checked) j["cleaning"] = cleaning_json(r.input_build);
   j["options"] = {{"vertices", o.vertices},
-                  {"threads", o.clustering.threads},
-                  {"clustering_threads", clustering_thread_count(o.clustering.threads)},
-                  {"deterministic", o.clustering.deterministic},
+                  {"threads", o.clustering.loops.threads},
+                  {"clustering_threads", clustering_thread_count(o.clustering.loops.threads)},
+                  {"deterministic", o.clustering.loops.deterministic},
                   {"seed", o.seed},
                   {"metric", metric_name(rm.clustering.metric)},
-                  {"algorithm", lloyd ? "lloyd" : "cvd"},
+                  {"algorithm", algorithm_name(o.clustering.algorithm)},
                   {"gradation", o.gradation},
                   {"curvature_rings", o.curvature_rings},
                   {"qem_threshold", o.clustering.qem_threshold},
                   {"subdivide", subdivide},
-                  {"small_components", o.small_components == SmallComponents::Drop ? "drop" : "keep"},
+                  {"small_components", small_components_name(o.small_components)},
                   {"boundary_strips", o.boundary_strips},
                   {"vertex_placement", uses_quadrics(rm.clustering.metric) ? "QEM point"
                                        : !o.project_to_surface                   ? "centroid"

@@ -16,6 +16,7 @@
 #include "streamcvd/core/measure/shapes.h"
 #include "streamcvd/streaming/remesh_pipeline.h"
 #include "streamcvd/streaming/store/store.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
@@ -193,6 +194,7 @@ TEST_P(DegenerateRemesh, EndsWithValidMeshOrInputError) {
                                (small == SmallComponents::Keep ? " keep" : " drop");
       SCOPED_TRACE(what);
       PipelineOptions options;
+      options.remesh.clustering = test::metric_i_one_thread();
       options.remesh.vertices = n;
       options.remesh.small_components = small;
       try {
@@ -206,8 +208,8 @@ TEST_P(DegenerateRemesh, EndsWithValidMeshOrInputError) {
                       (unsigned long long)r.remesh.defect_faces_removed);
         expect_valid_output(r, what);
         // Loops are bounded by the options, whatever the input.
-        EXPECT_LE(r.remesh.clustering.unconstrained_loops, options.remesh.clustering.max_loops) << what;
-        EXPECT_LE(r.remesh.clustering.constrained_loops, options.remesh.clustering.max_loops) << what;
+        EXPECT_LE(r.remesh.clustering.unconstrained_loops, options.remesh.clustering.loops.max_loops) << what;
+        EXPECT_LE(r.remesh.clustering.constrained_loops, options.remesh.clustering.loops.max_loops) << what;
         EXPECT_LE(r.remesh.repair_rounds_used, options.remesh.repair_rounds) << what;
       } catch (const InputError& e) {
         // Acceptable: a clear one-line message.
@@ -226,6 +228,7 @@ INSTANTIATE_TEST_SUITE_P(Cases, DegenerateRemesh, ::testing::Range<size_t>(0, ca
 
 PipelineResult run(const MeshBuffers& mesh, uint32_t n, SmallComponents small = SmallComponents::Keep) {
   PipelineOptions options;
+  options.remesh.clustering = test::metric_i_one_thread();
   options.remesh.vertices = n;
   options.remesh.small_components = small;
   MeshStore store = MeshStore::build(mesh.view());

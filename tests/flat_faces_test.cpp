@@ -88,6 +88,7 @@ TEST(FlatFaces, DragonSeedsWithCollinearStripsHaveNoFlatFace) {
   uint64_t edits = 0;
   for (uint64_t seed : {10, 15, 35, 45}) {
     RemeshOptions o;
+    o.clustering = test::metric_i_one_thread();
     o.vertices = 20000;
     o.seed = seed;
     const RemeshResult r = remesh(store.view(), o);

@@ -218,6 +218,7 @@ void check_closed(const std::string& name, const MeshBuffers& input, int64_t gen
   RemeshOptions o;
   o.vertices = n;
   o.clustering.metric = metric;
+  o.clustering.loops.threads = 1;
   o.optimize_quality = false;
   const RemeshResult off = remesh(store.view(), o);
   o.optimize_quality = true;

@@ -60,6 +60,7 @@ Remeshed run(const MeshBuffers& input, Metric metric, uint32_t n, double gradati
   RemeshOptions o;
   o.vertices = n;
   o.clustering.metric = metric;
+  o.clustering.loops.threads = 1;
   o.clustering.qem_threshold = qem_threshold;
   o.gradation = gradation;
   r.result = remesh(r.store.view(), o);

@@ -50,9 +50,9 @@ RemeshOptions options_for(uint32_t n, Metric metric, uint32_t threads, bool dete
   RemeshOptions o;
   o.vertices = n;
   o.clustering.metric = metric;
-  o.clustering.threads = threads;
-  o.clustering.deterministic = deterministic;
-  o.clustering.region_vertices = region_vertices;
+  o.clustering.loops.threads = threads;
+  o.clustering.loops.deterministic = deterministic;
+  o.clustering.loops.region_vertices = region_vertices;
   return o;
 }
 
@@ -96,9 +96,9 @@ TEST(ParallelClustering, EnergyWithinATenthOfAPercentOfSerial) {
   auto energy = [&](Metric metric, uint32_t threads, bool deterministic, std::vector<int32_t> labels) {
     ClusteringOptions o;
     o.metric = metric;
-    o.threads = threads;
-    o.deterministic = deterministic;
-    o.region_vertices = 2048;  // ~20 regions: many shared clusters
+    o.loops.threads = threads;
+    o.loops.deterministic = deterministic;
+    o.loops.region_vertices = 2048;  // ~20 regions: many shared clusters
     const ClusteringReport r = minimize_clustering(view, items, labels, budget.total_clusters, o);
     EXPECT_TRUE(clusters_connected(view, labels, budget.total_clusters));
     EXPECT_EQ(r.moves_per_loop.back(), 0u);  // the constrained pass converged
@@ -164,8 +164,9 @@ TEST(ParallelClustering, ConstrainedPassKeepsEveryClusterConnected) {
   for (uint32_t threads : {2u, 8u}) {
     std::vector<int32_t> labels = test::to_vector(initial_sampling(view, items, budget, 5, ram_storage()));
     ClusteringOptions o;
-    o.threads = threads;
-    o.region_vertices = 200;
+    o.metric = Metric::I;
+    o.loops.threads = threads;
+    o.loops.region_vertices = 200;
     const ClusteringReport rep = minimize_clustering(view, items, labels, budget.total_clusters, o);
     EXPECT_TRUE(clusters_connected(view, labels, budget.total_clusters)) << threads;
     std::vector<uint32_t> size(budget.total_clusters, 0);
@@ -293,8 +294,9 @@ TEST(ParallelClustering, OneThreadIsReproducibleWhateverTheStorage) {
   MeshStore store = MeshStore::build(torus.view(), {.faces_per_chunk = 500});
   RemeshOptions a;
   a.vertices = 150;
-  a.clustering.threads = 1;
-  a.clustering.region_vertices = 64;  // many regions and visits
+  a.clustering.metric = Metric::I;
+  a.clustering.loops.threads = 1;
+  a.clustering.loops.region_vertices = 64;  // many regions and visits
   const RemeshResult ra = remesh(store.view(), a), rb = remesh(store.view(), a);
   EXPECT_TRUE(test::to_vector(ra.cluster_of_vertex) == test::to_vector(rb.cluster_of_vertex));
   EXPECT_TRUE(ra.mesh.positions == rb.mesh.positions);
@@ -356,8 +358,8 @@ TEST(ParallelClustering, StressManySmallRandomRuns) {
     if (r.topology_changed) {
       // Report whether the serial clustering from the same seed keeps the topology here.
       RemeshOptions serial = o;
-      serial.clustering.threads = 1;
-      serial.clustering.deterministic = false;
+      serial.clustering.loops.threads = 1;
+      serial.clustering.loops.deterministic = false;
       const RemeshResult rs = remesh(stores[s].view(), serial);
       const std::string message = what + ": topology changed (serial from the same seed: " +
                                   (rs.topology_changed ? "changed too" : "kept") + ")";

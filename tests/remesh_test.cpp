@@ -62,6 +62,7 @@ void check_closed_remesh(const ClosedCase& c) {
     for (uint64_t seed : c.seeds) {
       SCOPED_TRACE(c.name + " N=" + std::to_string(n) + " seed " + std::to_string(seed));
       PipelineOptions o;
+      o.remesh.clustering = test::metric_i_one_thread();
       o.remesh.vertices = n;
       o.remesh.seed = seed;
       o.remesh.clustering.metric = c.metric;
@@ -143,6 +144,7 @@ TEST(RemeshClosed, ElephantAtN200ReportsEveryGenusChange) {
   for (uint64_t seed : {1, 2, 3, 4, 5, 6}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     PipelineOptions o;
+    o.remesh.clustering = test::metric_i_one_thread();
     o.remesh.vertices = 200;
     o.remesh.seed = seed;
     PipelineResult r = remesh_store(store, o);
@@ -168,6 +170,7 @@ TEST(RemeshClosed, OutputVerticesProjectedOntoTheSurface) {
   MeshStore store = MeshStore::build(sphere.view());
   auto radii = [&](bool project) {
     RemeshOptions o;
+    o.clustering = test::metric_i_one_thread();
     o.vertices = 200;
     o.project_to_surface = project;
     RemeshResult r = remesh(store.view(), o);
@@ -209,6 +212,7 @@ TEST(RemeshClosed, CoarseBudgetsStillGiveAValidManifold) {
     SCOPED_TRACE(c.name);
     MeshStore store = MeshStore::build(c.mesh.view());
     RemeshOptions o;
+    o.clustering = test::metric_i_one_thread();
     o.vertices = c.n;
     RemeshResult r;
     try {
@@ -237,6 +241,7 @@ TEST(RemeshClosed, CoarseBudgetsGiveASurfaceOrAClearError) {
     MeshBuffers torus = make_torus(80, 32);
     MeshStore store = MeshStore::build(torus.view());
     RemeshOptions o;
+    o.clustering = test::metric_i_one_thread();
     o.vertices = n;
     try {
       RemeshResult r = remesh(store.view(), o);
@@ -328,6 +333,8 @@ SamplingRun run_strip_plane(int m0, uint32_t n, uint64_t seed) {
   for (uint8_t r : region) ++run.regions[r].vertices;
 
   RemeshOptions o;
+
+  o.clustering = test::metric_i_one_thread();
   o.vertices = n;
   o.seed = seed;
   RemeshResult r = remesh(view, o);
@@ -434,6 +441,7 @@ TEST(RemeshDeterminism, SameSeedSameBytesDifferentSeedDifferentBytes) {
   auto run = [&](uint64_t seed, const std::string& file) {
     MeshStore store = MeshStore::build(elephant.view());  // a fresh store each run
     RemeshOptions o;
+    o.clustering = test::metric_i_one_thread();
     o.vertices = 300;
     o.seed = seed;
     RemeshResult r = remesh(store.view(), o);
@@ -474,6 +482,8 @@ TEST(RemeshComponents, SmallComponentsKeptOrDropped) {
   ASSERT_EQ(compute_topology_stats(soup.view()).components, 1 + small);
 
   RemeshOptions o;
+
+  o.clustering = test::metric_i_one_thread();
   o.vertices = 300;
   o.small_components = SmallComponents::Keep;
   RemeshResult keep = remesh(store.view(), o);
@@ -525,6 +535,7 @@ TEST(RemeshOpen, OpenAndDirtyInputsGiveManifoldOutput) {
     for (uint32_t n : c.budgets) {
       SCOPED_TRACE(c.name + " N=" + std::to_string(n));
       PipelineOptions o;
+      o.remesh.clustering = test::metric_i_one_thread();
       o.remesh.vertices = n;
       PipelineResult r = remesh_store(store, o);
       const TopologyStats& t = r.output_topology;
@@ -569,6 +580,7 @@ TEST(RemeshOpen, OpenAndDirtyInputsGiveManifoldOutput) {
     const TopologyStats in = compute_topology_stats(holes.view());
     MeshStore store = MeshStore::build(holes.view());
     PipelineOptions o;
+    o.remesh.clustering = test::metric_i_one_thread();
     o.remesh.vertices = 2000;
     PipelineResult r = remesh_store(store, o);
     EXPECT_EQ(r.output_topology.boundary_loops + r.remesh.holes_closed, in.boundary_loops);
@@ -586,6 +598,7 @@ TEST(RemeshOpen, FlatGridOutputHasNoFoldedTriangles) {
     MeshBuffers grid = make_grid(80, 80);
     MeshStore store = MeshStore::build(grid.view());
     RemeshOptions o;
+    o.clustering = test::metric_i_one_thread();
     o.vertices = 300;
     o.seed = seed;
     RemeshResult r = remesh(store.view(), o);
@@ -624,6 +637,7 @@ TEST(RemeshExactCount, ManyPiecesWithBoundariesGiveExactlyN) {
     for (uint32_t n : {600u, 2000u}) {
       SCOPED_TRACE(std::string(metric_name(m)) + " N=" + std::to_string(n));
       PipelineOptions o;
+      o.remesh.clustering = test::metric_i_one_thread();
       o.remesh.vertices = n;
       o.remesh.clustering.metric = m;
       PipelineResult r = remesh_store(store, o);

@@ -27,6 +27,7 @@ TEST(StripBudget, ElephantWithHolesGetsExactlyNWhenTheInteriorKeepsHalf) {
   for (uint32_t n : {1000u, 500u}) {
     SCOPED_TRACE(n);
     PipelineOptions o;
+    o.remesh.clustering = test::metric_i_one_thread();
     o.remesh.vertices = n;
     const PipelineResult r = remesh_store(store, o);
     const RemeshResult& m = r.remesh;

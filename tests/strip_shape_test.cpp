@@ -17,6 +17,7 @@
 #include "streamcvd/core/remesh.h"
 #include "streamcvd/core/measure/shapes.h"
 #include "streamcvd/streaming/store/store.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
@@ -130,6 +131,7 @@ TEST(StripShape, JaggedHolesGetWellShapedStripsOnTheInputBoundary) {
     RemeshOptions o;
     o.vertices = 2000;
     o.clustering.metric = metric;
+    o.clustering.loops.threads = 1;
     const RemeshResult r = remesh(store.view(), o);
     const TopologyStats t = compute_topology_stats(r.mesh.view());
     std::printf("[ strips   ] sphere with 24 holes -> N=2000 %s: %llu strip faces, Qav %.3f (others %.3f), Qmin %.3f, "
@@ -161,6 +163,7 @@ TEST(StripShape, HolesNarrowerThanTwoOutputEdgesCloseAtLowResolutionOnly) {
   uint64_t closed_at[2] = {0, 0};
   for (int i = 0; i < 2; ++i) {
     RemeshOptions o;
+    o.clustering = test::metric_i_one_thread();
     o.vertices = i == 0 ? 300 : 3000;
     SCOPED_TRACE(o.vertices);
     const RemeshResult r = remesh(store.view(), o);
@@ -180,11 +183,12 @@ TEST(StripShape, SameOutputForAnyThreadCount) {
   MeshStore store = MeshStore::build(input.view());
   RemeshOptions o;
   o.vertices = 1500;
-  o.clustering.deterministic = true;
+  o.clustering.metric = Metric::I;
+  o.clustering.loops.deterministic = true;
   std::vector<float> first;
   for (uint32_t threads : {1u, 2u, 4u}) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
-    o.clustering.threads = threads;
+    o.clustering.loops.threads = threads;
     const RemeshResult r = remesh(store.view(), o);
     if (first.empty()) first = r.mesh.positions;
     else EXPECT_EQ(r.mesh.positions, first) << threads << " threads";

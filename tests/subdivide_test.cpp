@@ -18,6 +18,7 @@
 #include "streamcvd/streaming/remesh_pipeline.h"
 #include "streamcvd/streaming/store/store.h"
 #include "streamcvd/streaming/store/subdivision_stream.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
@@ -155,6 +156,7 @@ TEST(Subdivide, PipelineReachesNAboveHalfTheInputVertices) {
   MeshBuffers sphere = make_icosphere(3);
   MeshStore store = MeshStore::build(sphere.view());
   PipelineOptions o;
+  o.remesh.clustering = test::metric_i_one_thread();
   o.remesh.vertices = 600;
   PipelineResult r = remesh_store(store, o);
   EXPECT_GE(r.subdivision_levels, 1);

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <span>
+#include <string_view>
 #include <vector>
 
 #include "streamcvd/core/clustering/cluster_energy.h"
@@ -17,27 +18,59 @@
 
 namespace streamcvd {
 
-struct ClusteringOptions {
-  enum class Algorithm : uint8_t { Cvd, Lloyd };
-  Algorithm algorithm = Algorithm::Cvd;  ///< Cvd: Algorithm 1; Lloyd: the §VII baseline (core/clustering/lloyd.h, I/IQ only)
-  uint32_t lloyd_max_iterations = 100;   ///< Lloyd: iteration bound (it need not converge)
-  double lloyd_time_limit = 0;           ///< Lloyd: seconds, 0 = no limit
-  Metric metric = Metric::I;       ///< energy (items must carry tensors for A/AQ, quadrics for IQ/AQ)
-  double near_convergence = 1e-3;  ///< stop the unconstrained pass when < this fraction of items moved
-  uint32_t max_loops = 2000;       ///< safety bound on loops per pass
-  bool skip_unchanged = true;      ///< the modified-clusters skip of §VI-A
+/// How the boundary-edge loops of Algorithm 1 run. A job has one set, ClusteringOptions::loops;
+/// each pass starts from it (minimize_clustering's passes, the repair's relaxation through
+/// loop_options) and changes only what is the pass's own: constrained, stop_fraction,
+/// max_loops, on_loop.
+struct LoopOptions {
+  bool constrained = false;       ///< every move keeps the source cluster connected (§VI-B)
+  /// Stop when fewer than this fraction of V items moved in a loop (0: when none moves). In
+  /// ClusteringOptions::loops, the near-convergence of the unconstrained passes; the
+  /// constrained pass of minimize_clustering always runs until no item moves.
+  double stop_fraction = 0.0;
+  uint32_t max_loops = 2000;      ///< safety bound on loops per pass
+  bool skip_unchanged = true;     ///< the modified-clusters skip of §VI-A
   uint32_t offset_update_loops = 5;  ///< Q metrics: loops per pass after which the QEM sites freeze
-  double qem_threshold = 1e-2;      ///< Q metrics: relative eigenvalue truncation (ClusterState)
-  /// Clustering threads: 1 = the serial loop (reference output), 0 = all cores, T > 1 = the
-  /// parallel loop of core/clustering/parallel_clustering.h (output may differ between runs).
-  uint32_t threads = 1;
+  /// Threads: 0 = all cores (TBB's limit), 1 = one thread (the reference output, the same on
+  /// every run), T > 1 = T threads, whose output may differ between runs unless deterministic
+  /// (core/clustering/parallel_clustering.h).
+  uint32_t threads = 0;
   bool deterministic = false;   ///< parallel loop whose output is the same for every thread count
   uint32_t region_vertices = 0; ///< parallel loop: target vertices per region (0 = automatic)
   /// Called after every loop with (constrained pass?, loop number, items moved); for progress.
+  /// Lloyd calls it after every iteration with (false, iteration, items moved).
   std::function<void(bool, uint32_t, uint64_t)> on_loop;
   /// Where the loops' arrays sized by V live (null = RAM; the out-of-core pipeline's WorkSpace).
   ArrayStorage* storage = nullptr;
 };
+
+/// The settings of the Lloyd baseline (core/clustering/lloyd.h) that are Lloyd's alone; the
+/// metric, the QEM threshold, the threads and the progress are the clustering's.
+struct LloydOptions {
+  uint32_t max_iterations = 100;  ///< Lloyd need not converge (paper §VII): a hard bound
+  double time_limit_seconds = 0;  ///< stop after the iteration that exceeds it; 0 = no limit
+  /// Keep the lowest-energy clustering met instead of the last one: the flooding is not
+  /// monotone, and near a cycle the last iterate can be slightly worse than an earlier one.
+  bool keep_best = true;
+};
+
+/// A clustering job: which algorithm, under which energy, with which loops. The defaults are
+/// the library's and the CLI's (tools/cmd_remesh.cpp and the Python binding read them here).
+struct ClusteringOptions {
+  enum class Algorithm : uint8_t { Cvd, Lloyd };
+  Algorithm algorithm = Algorithm::Cvd;  ///< Cvd: Algorithm 1; Lloyd: the §VII baseline (core/clustering/lloyd.h, I/IQ only)
+  /// Energy (§V): I, IQ, A or AQ. Items must carry tensors for A/AQ and quadrics for IQ/AQ
+  /// (make_cluster_state throws std::invalid_argument otherwise).
+  Metric metric = Metric::IQ;
+  double qem_threshold = 1e-2;  ///< Q metrics: relative eigenvalue truncation (ClusterState)
+  LoopOptions loops = {.stop_fraction = 1e-3};  ///< Algorithm 1's loops (and the threads of every stage)
+  LloydOptions lloyd;                           ///< Algorithm::Lloyd only
+};
+
+/// "cvd" or "lloyd" (the CLI's, the Python binding's and the report's spelling). O(1).
+const char* algorithm_name(ClusteringOptions::Algorithm algorithm);
+/// Parses "cvd" or "lloyd" (case-insensitive); false (`out` unchanged) when the text is neither.
+bool parse_algorithm(std::string_view text, ClusteringOptions::Algorithm& out);
 
 struct ClusteringReport {
   std::vector<uint64_t> moves_per_loop;
@@ -46,24 +79,8 @@ struct ClusteringReport {
   uint32_t unconstrained_loops = 0, constrained_loops = 0;
   uint64_t cleaned_vertices = 0;        ///< vertices reset by the cleaning step
   uint32_t disconnected_clusters = 0;   ///< clusters found in several pieces by the cleaning step
-  Metric metric = Metric::I;            ///< metric actually used (A/AQ fall back to I/IQ without tensors)
+  Metric metric = Metric::I;            ///< the metric of the energies (the options')
   double final_energy = 0;              ///< energy of the final clustering under that metric
-};
-
-/// One pass of Algorithm 1 (see run_clustering_loops).
-struct LoopOptions {
-  bool constrained = false;       ///< every move keeps the source cluster connected (§VI-B)
-  double stop_fraction = 0.0;     ///< stop when fewer than this fraction of V items moved in a loop
-  uint32_t max_loops = 2000;
-  bool skip_unchanged = true;
-  uint32_t offset_update_loops = 5;  ///< Q metrics: re-solve the sites of changed clusters until then
-  /// Clustering threads: 1 = the serial loop (reference output), 0 = all cores, T > 1 = the
-  /// parallel loop of core/clustering/parallel_clustering.h (output may differ between runs).
-  uint32_t threads = 1;
-  bool deterministic = false;   ///< parallel loop whose output is the same for every thread count
-  uint32_t region_vertices = 0; ///< parallel loop: target vertices per region (0 = automatic)
-  std::function<void(bool, uint32_t, uint64_t)> on_loop;
-  ArrayStorage* storage = nullptr;  ///< arrays sized by V (null = RAM)
 };
 
 /// Recomputes every cluster's isotropic sums from the labels (fixed order: deterministic).
@@ -77,13 +94,24 @@ double clustering_energy(const ItemData& items, std::span<const ClusterSums> sum
 /// centroid sites; the Q metrics then embed their QEM sites and converge again), cleaning
 /// (each cluster keeps its heaviest connected piece; the rest is freed and re-absorbed), then
 /// loops with the 1-ring connectivity check until no item moves. Never empties a cluster.
-/// Labels must be a valid initial clustering (every cluster non-empty). Single-threaded unless
-/// options.threads ≠ 1 or options.deterministic (then the loops run in parallel).
+/// Labels must be a valid initial clustering (every cluster non-empty). Runs on
+/// options.loops.threads threads (see LoopOptions::threads); options.algorithm and
+/// options.lloyd are not read. O((V + E) / T) per loop; nothing else may touch the labels.
 ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                                     uint32_t cluster_count, const ClusteringOptions& options = {});
+                                     uint32_t cluster_count, const ClusteringOptions& options);
 
-/// The loop settings of a pass of `options` (unconstrained, stopping at near_convergence).
-LoopOptions loop_options(const ClusteringOptions& options);
+/// The loop settings a pass outside minimize_clustering starts from (the repair's
+/// relaxation): options.loops. O(1).
+inline LoopOptions loop_options(const ClusteringOptions& options) { return options.loops; }
+
+/// The state of a clustering under options.metric with its sites solved: make_cluster_state,
+/// then the QEM point of every cluster for the Q metrics (update_site_offsets; I and A have
+/// no site to solve), spread over options.loops.threads threads (the same bits for any
+/// count). The one way the clustering passes, Lloyd and remesh() get the sites of a
+/// clustering. O(V + K) plus K 3×3 eigen-solves over the threads. Throws like
+/// make_cluster_state.
+ClusterState solved_cluster_state(const ItemData& items, std::span<const int32_t> labels, uint32_t cluster_count,
+                                  const ClusteringOptions& options);
 
 /// Loops of Algorithm 1 under the state's metric until no item moves, fewer than
 /// `stop_fraction`·V items moved, or `max_loops` (constrained: every move keeps the source

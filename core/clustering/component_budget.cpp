@@ -84,6 +84,17 @@ std::vector<uint32_t> proportional_split(const std::vector<double>& weights, uin
 
 }  // namespace sampling
 
+const char* small_components_name(SmallComponents mode) { return mode == SmallComponents::Drop ? "drop" : "keep"; }
+
+bool parse_small_components(std::string_view text, SmallComponents& out) {
+  for (SmallComponents m : {SmallComponents::Keep, SmallComponents::Drop})
+    if (text == small_components_name(m)) {
+      out = m;
+      return true;
+    }
+  return false;
+}
+
 std::vector<VertexRange> sampling_ranges(const MeshView& mesh) {
   const uint32_t V = mesh.vertex_count();
   if (mesh.chunks.empty()) return {VertexRange{0, V}};

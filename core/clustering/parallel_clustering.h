@@ -30,10 +30,6 @@ uint32_t clustering_thread_count(uint32_t threads);
 // run_clustering_loops (core/clustering/clustering.h) is defined in parallel_clustering.cpp:
 // options.threads worker threads in a tbb::task_arena of its own; thread-safe against nothing
 // else touching the labels or the state. O((V + E) / T) per loop plus a serial pass over the
-// postponed edges.
-
-/// update_site_offsets(state) for every cluster, clusters spread over `threads` threads (0 =
-/// all). Bit-identical to the serial call. O(K / T).
-void parallel_update_site_offsets(ClusterState& state, uint32_t threads);
+// postponed edges. solved_cluster_state spreads the site solves the same way (cluster_sites.cpp).
 
 }  // namespace streamcvd

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "streamcvd/core/clustering/item_data.h"
@@ -18,6 +19,11 @@
 namespace streamcvd {
 
 enum class SmallComponents { Keep, Drop };
+
+/// "keep" or "drop" (the CLI's, the Python binding's and the report's spelling). O(1).
+const char* small_components_name(SmallComponents mode);
+/// Parses "keep" or "drop"; false (`out` unchanged) when the text is neither.
+bool parse_small_components(std::string_view text, SmallComponents& out);
 
 /// How many clusters each connected component of the mesh gets.
 struct ComponentBudget {

@@ -178,11 +178,11 @@ TEST(Lloyd, RemeshWithLloydGivesAClosedManifold) {
     EXPECT_EQ(r.clustering.constrained_loops, 0u) << "no Algorithm 1 loop in a Lloyd run";
     EXPECT_GE(r.clustering.unconstrained_loops, 1u);
     EXPECT_EQ(r.clustering.metric, metric);
-    EXPECT_TRUE(r.clusters_connected);
-    EXPECT_EQ(r.defect_vertices, 0u);
-    EXPECT_FALSE(r.topology_changed);
+    EXPECT_TRUE(r.checks.clusters_connected);
+    EXPECT_EQ(r.placement.defect_vertices, 0u);
+    EXPECT_FALSE(r.checks.topology_changed);
     EXPECT_EQ(r.mesh.vertex_count(), 300u);
-    EXPECT_EQ(r.output_euler_characteristic, 2);
+    EXPECT_EQ(r.checks.output_euler_characteristic, 2);
   }
 }
 

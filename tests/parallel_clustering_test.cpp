@@ -62,16 +62,16 @@ RemeshOptions options_for(uint32_t n, Metric metric, uint32_t threads, bool dete
 void expect_valid_closed_output(const RemeshResult& r, const TopologyStats& input, const std::string& what) {
   SCOPED_TRACE(what);
   const TopologyStats t = compute_topology_stats(r.mesh.view());
-  EXPECT_TRUE(r.clusters_connected);
-  EXPECT_EQ(r.defect_vertices, 0u);
+  EXPECT_TRUE(r.checks.clusters_connected);
+  EXPECT_EQ(r.placement.defect_vertices, 0u);
   EXPECT_EQ(t.nonmanifold_edges + t.nonmanifold_vertices + t.duplicate_faces + t.isolated_vertices, 0u);
   EXPECT_EQ(t.degenerate_faces, 0u);
   EXPECT_TRUE(t.consistently_oriented);
-  if (!r.topology_changed) {
+  if (!r.checks.topology_changed) {
     EXPECT_TRUE(t.closed_manifold);
     EXPECT_EQ(t.euler_characteristic, input.euler_characteristic);
   }
-  EXPECT_EQ(r.output_euler_characteristic, t.euler_characteristic);
+  EXPECT_EQ(r.checks.output_euler_characteristic, t.euler_characteristic);
 }
 
 TEST(ParallelClustering, ThreadCountResolves) {
@@ -355,14 +355,14 @@ TEST(ParallelClustering, StressManySmallRandomRuns) {
     // each): reported, it is counted and bounded below; any other change is a failure.
     const bool aq_elephant = shapes[s].name == "elephant" && metric == Metric::AQ;
     aq_elephant_runs += aq_elephant;
-    if (r.topology_changed) {
+    if (r.checks.topology_changed) {
       // Report whether the serial clustering from the same seed keeps the topology here.
       RemeshOptions serial = o;
       serial.clustering.loops.threads = 1;
       serial.clustering.loops.deterministic = false;
       const RemeshResult rs = remesh(stores[s].view(), serial);
       const std::string message = what + ": topology changed (serial from the same seed: " +
-                                  (rs.topology_changed ? "changed too" : "kept") + ")";
+                                  (rs.checks.topology_changed ? "changed too" : "kept") + ")";
       if (aq_elephant) std::printf("[ stress   ] %s\n", message.c_str());
       else ADD_FAILURE() << message;
       ++topology_changes;

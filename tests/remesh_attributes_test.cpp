@@ -172,7 +172,7 @@ TEST_F(RemeshAttributes, StripVerticesAndSubdivisionCarryAttributes) {
   o.subdivide = 1;
   const PipelineResult r = remesh_path(path, o);
   ASSERT_EQ(r.subdivision_levels, 1);
-  ASSERT_GT(r.remesh.boundary_vertices_added, 0u);
+  ASSERT_GT(r.remesh.dual.boundary_vertices_added, 0u);
   const MeshBuffers& m = r.remesh.mesh;
   const ColourError all = colour_error(m.positions, r.attributes, r.remesh.vertex_attributes);
   EXPECT_LT(all.mean, 0.01);

@@ -34,7 +34,6 @@ struct Output {
 };
 
 Output run_with(const MeshView& view, RemeshOptions o, ArrayStorage& storage) {
-  o.clustering.loops.storage = &storage;
   const RemeshResult r = remesh(view, o, storage);
   return {r.mesh.positions, r.mesh.triangles, test::to_vector(r.cluster_of_vertex)};
 }
@@ -75,7 +74,6 @@ TEST(RemeshStorage, LabelsAreReturnedOnlyWhenAsked) {
   const MeshStore store = MeshStore::build(elephant.view());
   RemeshOptions o = options_for(Metric::I, 1, false);
   WorkSpace files("", 0);
-  o.clustering.loops.storage = &files;
   const RemeshResult kept = remesh(store.view(), o, files);
   EXPECT_EQ(kept.cluster_of_vertex.size(), store.view().vertex_count());
   EXPECT_EQ(&kept.cluster_of_vertex.storage(), &ram_storage());  // outlives the work space

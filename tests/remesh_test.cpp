@@ -72,9 +72,9 @@ void check_closed_remesh(const ClosedCase& c) {
       std::printf("[ closed   ] %-9s V=%-6u N=%-5u seed=%-9llu subdiv=%d -> V=%u F=%llu genus=%lld defects=%llu repaired=%llu\n",
                   c.name.c_str(), c.mesh.vertex_count(), n, (unsigned long long)seed, r.subdivision_levels,
                   r.remesh.mesh.vertex_count(), (unsigned long long)t.faces, (long long)t.genus,
-                  (unsigned long long)r.remesh.defect_vertices, (unsigned long long)r.remesh.repaired_clusters);
-      EXPECT_EQ(r.remesh.defect_vertices, 0u);
-      EXPECT_EQ(r.remesh.defect_faces_removed, 0u);
+                  (unsigned long long)r.remesh.placement.defect_vertices, (unsigned long long)r.remesh.repair.repaired_clusters);
+      EXPECT_EQ(r.remesh.placement.defect_vertices, 0u);
+      EXPECT_EQ(r.remesh.placement.defects_removed.faces_removed, 0u);
       EXPECT_TRUE(t.closed_manifold);
       EXPECT_TRUE(t.consistently_oriented);
       EXPECT_EQ(t.duplicate_faces, 0u);
@@ -88,8 +88,8 @@ void check_closed_remesh(const ClosedCase& c) {
       // Exactly N output vertices, one per cluster.
       EXPECT_EQ(r.remesh.clusters, n);
       EXPECT_EQ(r.remesh.mesh.vertex_count(), n);
-      EXPECT_EQ(r.remesh.boundary_vertices_added, 0u);
-      EXPECT_TRUE(r.remesh.clusters_connected);
+      EXPECT_EQ(r.remesh.dual.boundary_vertices_added, 0u);
+      EXPECT_TRUE(r.remesh.checks.clusters_connected);
       // The pipeline's own summary agrees.
       EXPECT_TRUE(r.output_topology.closed_manifold);
       EXPECT_EQ(r.output_topology.genus, c.genus);
@@ -151,9 +151,9 @@ TEST(RemeshClosed, ElephantAtN200ReportsEveryGenusChange) {
     const TopologyStats& t = r.output_topology;
     EXPECT_EQ(t.nonmanifold_edges + t.nonmanifold_vertices + t.duplicate_faces + t.isolated_vertices, 0u);
     EXPECT_TRUE(t.consistently_oriented);
-    const bool kept = t.closed_manifold && t.genus == 3 && r.remesh.defect_faces_removed == 0;
-    EXPECT_EQ(r.remesh.topology_changed, !kept);
-    EXPECT_EQ(r.remesh.output_euler_characteristic, t.euler_characteristic);
+    const bool kept = t.closed_manifold && t.genus == 3 && r.remesh.placement.defects_removed.faces_removed == 0;
+    EXPECT_EQ(r.remesh.checks.topology_changed, !kept);
+    EXPECT_EQ(r.remesh.checks.output_euler_characteristic, t.euler_characteristic);
   }
 }
 
@@ -224,12 +224,12 @@ TEST(RemeshClosed, CoarseBudgetsStillGiveAValidManifold) {
     TopologyStats t = compute_topology_stats(r.mesh.view());
     std::printf("[ coarse   ] %-16s -> V=%u F=%llu components=%llu loops=%llu faces removed=%llu\n", c.name.c_str(),
                 r.mesh.vertex_count(), (unsigned long long)t.faces, (unsigned long long)t.components,
-                (unsigned long long)t.boundary_loops, (unsigned long long)r.defect_faces_removed);
-    EXPECT_EQ(r.defect_vertices, 0u);
+                (unsigned long long)t.boundary_loops, (unsigned long long)r.placement.defects_removed.faces_removed);
+    EXPECT_EQ(r.placement.defect_vertices, 0u);
     EXPECT_TRUE(find_manifold_defects(r.mesh.view()).empty());
     EXPECT_EQ(t.nonmanifold_edges + t.nonmanifold_vertices + t.duplicate_faces + t.isolated_vertices, 0u);
     EXPECT_TRUE(t.consistently_oriented);
-    EXPECT_EQ(r.mesh.vertex_count(), r.clusters - r.defect_vertices_removed);
+    EXPECT_EQ(r.mesh.vertex_count(), r.clusters - r.placement.defects_removed.vertices_removed);
   }
 }
 
@@ -338,9 +338,9 @@ SamplingRun run_strip_plane(int m0, uint32_t n, uint64_t seed) {
   o.vertices = n;
   o.seed = seed;
   RemeshResult r = remesh(view, o);
-  run.clusters = uint32_t(r.mesh.vertex_count() - r.boundary_vertices_added);
+  run.clusters = uint32_t(r.mesh.vertex_count() - r.dual.boundary_vertices_added);
   run.output = compute_topology_stats(r.mesh.view());
-  run.defect_vertices = r.defect_vertices;
+  run.defect_vertices = r.placement.defect_vertices;
   ItemData items = compute_item_data(view);
   std::vector<double> area(r.clusters, 0.0), moment_x(r.clusters, 0.0);
   std::vector<int> region_of_cluster(r.clusters, -1);  // −1 unset, −2 touches a border
@@ -493,7 +493,7 @@ TEST(RemeshComponents, SmallComponentsKeptOrDropped) {
   EXPECT_EQ(kt.components, 1 + small) << "a kept component is missing from the output";
   EXPECT_EQ(keep.clusters, 300u) << keep.budget.note;
   EXPECT_EQ(keep.mesh.vertex_count(), 300u);
-  EXPECT_EQ(keep.defect_vertices, 0u);
+  EXPECT_EQ(keep.placement.defect_vertices, 0u);
   EXPECT_EQ(kt.nonmanifold_edges + kt.nonmanifold_vertices + kt.duplicate_faces + kt.isolated_vertices, 0u);
   EXPECT_TRUE(kt.consistently_oriented);
   // Faces: sphere (closed, F = 2V − 4) + 3 triangles + 2 tetrahedra (4 each) + a tetrahedron for
@@ -540,11 +540,11 @@ TEST(RemeshOpen, OpenAndDirtyInputsGiveManifoldOutput) {
       PipelineResult r = remesh_store(store, o);
       const TopologyStats& t = r.output_topology;
       std::printf("[ open     ] %-20s N=%-5u -> V=%u (strip vertices %llu) loops %llu -> %llu, holes closed %llu, chi %lld -> %lld, faces removed %llu\n",
-                  c.name.c_str(), n, r.remesh.mesh.vertex_count(), (unsigned long long)r.remesh.boundary_vertices_added,
+                  c.name.c_str(), n, r.remesh.mesh.vertex_count(), (unsigned long long)r.remesh.dual.boundary_vertices_added,
                   (unsigned long long)in.boundary_loops, (unsigned long long)t.boundary_loops,
-                  (unsigned long long)r.remesh.holes_closed, (long long)in.euler_characteristic,
-                  (long long)t.euler_characteristic, (unsigned long long)r.remesh.defect_faces_removed);
-      EXPECT_EQ(r.remesh.defect_vertices, 0u);
+                  (unsigned long long)r.remesh.dual.holes_closed, (long long)in.euler_characteristic,
+                  (long long)t.euler_characteristic, (unsigned long long)r.remesh.placement.defects_removed.faces_removed);
+      EXPECT_EQ(r.remesh.placement.defect_vertices, 0u);
       EXPECT_EQ(t.nonmanifold_edges, 0u);
       EXPECT_EQ(t.nonmanifold_vertices, 0u);
       EXPECT_EQ(t.duplicate_faces, 0u);
@@ -554,16 +554,16 @@ TEST(RemeshOpen, OpenAndDirtyInputsGiveManifoldOutput) {
       // N vertices, strips included, but where the strips alone need half of N or more (said
       // in the budget note) or the last-resort cleanup deleted some (the dirty bunny).
       EXPECT_EQ(int64_t(r.remesh.mesh.vertex_count()),
-                int64_t(n) - r.remesh.vertex_shortfall - int64_t(r.remesh.defect_vertices_removed));
-      if (2 * r.remesh.boundary_vertices_added < n && r.remesh.defect_vertices_removed == 0) {
+                int64_t(n) - r.remesh.dual.vertex_shortfall - int64_t(r.remesh.placement.defects_removed.vertices_removed));
+      if (2 * r.remesh.dual.boundary_vertices_added < n && r.remesh.placement.defects_removed.vertices_removed == 0) {
         EXPECT_EQ(r.remesh.mesh.vertex_count(), n);
-      } else if (r.remesh.vertex_shortfall != 0) {
+      } else if (r.remesh.dual.vertex_shortfall != 0) {
         EXPECT_FALSE(r.remesh.budget.note.empty()) << "a missed N must be explained";
       }
-      EXPECT_GT(r.remesh.boundary_vertices_added, 0u);
+      EXPECT_GT(r.remesh.dual.boundary_vertices_added, 0u);
       if (c.name != "bunny") {  // manifold inputs: every hole is either kept or closed by the dual
-        EXPECT_EQ(r.remesh.defect_faces_removed, 0u);
-        EXPECT_EQ(t.boundary_loops + r.remesh.holes_closed, in.boundary_loops);
+        EXPECT_EQ(r.remesh.placement.defects_removed.faces_removed, 0u);
+        EXPECT_EQ(t.boundary_loops + r.remesh.dual.holes_closed, in.boundary_loops);
         EXPECT_EQ(t.components, 1u);
         // Same genus, g = (2 − χ − loops) / 2 for one orientable component with boundary; a
         // closed hole raises χ by one and removes one loop.
@@ -583,9 +583,9 @@ TEST(RemeshOpen, OpenAndDirtyInputsGiveManifoldOutput) {
     o.remesh.clustering = test::metric_i_one_thread();
     o.remesh.vertices = 2000;
     PipelineResult r = remesh_store(store, o);
-    EXPECT_EQ(r.output_topology.boundary_loops + r.remesh.holes_closed, in.boundary_loops);
+    EXPECT_EQ(r.output_topology.boundary_loops + r.remesh.dual.holes_closed, in.boundary_loops);
     EXPECT_GT(2 * r.output_topology.boundary_loops, in.boundary_loops) << "most holes are wider than two edges";
-    EXPECT_EQ(r.output_topology.euler_characteristic, in.euler_characteristic + int64_t(r.remesh.holes_closed));
+    EXPECT_EQ(r.output_topology.euler_characteristic, in.euler_characteristic + int64_t(r.remesh.dual.holes_closed));
   }
 }
 
@@ -641,11 +641,11 @@ TEST(RemeshExactCount, ManyPiecesWithBoundariesGiveExactlyN) {
       o.remesh.vertices = n;
       o.remesh.clustering.metric = m;
       PipelineResult r = remesh_store(store, o);
-      EXPECT_GT(r.remesh.boundary_vertices_added, 0u);
+      EXPECT_GT(r.remesh.dual.boundary_vertices_added, 0u);
       EXPECT_EQ(r.remesh.mesh.vertex_count(), n) << r.remesh.budget.note;
-      EXPECT_EQ(r.remesh.vertex_shortfall, 0);
+      EXPECT_EQ(r.remesh.dual.vertex_shortfall, 0);
       EXPECT_EQ(r.output_topology.components, 10u);
-      EXPECT_TRUE(r.remesh.components.ok()) << r.remesh.components.problems.front();
+      EXPECT_TRUE(r.remesh.checks.components.ok()) << r.remesh.checks.components.problems.front();
       EXPECT_EQ(r.output_topology.nonmanifold_edges + r.output_topology.nonmanifold_vertices, 0u);
     }
   }

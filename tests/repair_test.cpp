@@ -182,11 +182,11 @@ TEST(RepairDragon, SeedsConvergeWithinTheRoundBudget) {
     o.vertices = 20000;
     o.seed = seed;
     const RemeshResult r = remesh(store.view(), o);
-    EXPECT_GT(r.repair_rounds_used, 0u) << "seed " << seed << ": the dragon always has defects to repair";
-    EXPECT_LE(r.repair_rounds_used, o.repair_rounds) << "seed " << seed;
-    EXPECT_EQ(r.defect_faces_removed, 0u) << "seed " << seed;
-    EXPECT_EQ(r.defect_vertices, 0u) << "seed " << seed;
-    EXPECT_TRUE(r.components.ok()) << "seed " << seed << ": " << r.components.problems.front();
+    EXPECT_GT(r.repair.rounds, 0u) << "seed " << seed << ": the dragon always has defects to repair";
+    EXPECT_LE(r.repair.rounds, o.repair_rounds) << "seed " << seed;
+    EXPECT_EQ(r.placement.defects_removed.faces_removed, 0u) << "seed " << seed;
+    EXPECT_EQ(r.placement.defect_vertices, 0u) << "seed " << seed;
+    EXPECT_TRUE(r.checks.components.ok()) << "seed " << seed << ": " << r.checks.components.problems.front();
     EXPECT_EQ(r.mesh.vertex_count(), 20000u) << "seed " << seed << ": exactly N, strip vertices included";
   }
 }

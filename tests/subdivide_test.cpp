@@ -163,7 +163,7 @@ TEST(Subdivide, PipelineReachesNAboveHalfTheInputVertices) {
   EXPECT_GE(r.remeshed_vertices, 6000u);
   EXPECT_EQ(r.remesh.clusters, 600u);
   EXPECT_EQ(r.remesh.mesh.vertex_count(), 600u);
-  EXPECT_EQ(r.remesh.defect_vertices, 0u);
+  EXPECT_EQ(r.remesh.placement.defect_vertices, 0u);
   EXPECT_TRUE(r.output_topology.closed_manifold);
   EXPECT_TRUE(r.output_topology.consistently_oriented);
   EXPECT_EQ(r.output_topology.genus, 0);

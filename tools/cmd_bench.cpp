@@ -190,10 +190,10 @@ json run_row(const BenchCase& c, const std::string& algorithm, uint32_t target, 
                     {"dual", rm.seconds.dual},         {"algorithm", total - p.load_seconds}, {"total", total}};
     r["loops"] = {{"unconstrained", rm.clustering.unconstrained_loops},
                   {"constrained", rm.clustering.constrained_loops},
-                  {"repair_rounds", rm.repair_rounds_used},
-                  {"repair_count_rounds", rm.repair_count_rounds}};
-    r["final_energy"] = rm.final_energy;
-    r["defect_vertices"] = rm.defect_vertices;
+                  {"repair_rounds", rm.repair.rounds},
+                  {"repair_count_rounds", rm.repair.count_rounds}};
+    r["final_energy"] = rm.dual.final_energy;
+    r["defect_vertices"] = rm.placement.defect_vertices;
     loop_series(rm.clustering, r);
     output = std::move(p.remesh.mesh);
   } else {  // "openmesh-qem"

@@ -216,11 +216,11 @@ void add_remesh_command(CLI::App& app) {
       if (r.input_build.cleaning.rebuilt) print_cleaning(stderr, r.input_build, "  ");
       std::fprintf(stderr, "  output %llu vertices (%llu clusters + %llu on boundary strips), %llu faces, Qav %.3f, angles<30 %.2f%%\n",
                    (unsigned long long)r.output_topology.vertices,
-                   (unsigned long long)(r.output_topology.vertices - rm.boundary_vertices_added),
-                   (unsigned long long)rm.boundary_vertices_added, (unsigned long long)r.output_topology.faces,
+                   (unsigned long long)(r.output_topology.vertices - rm.dual.boundary_vertices_added),
+                   (unsigned long long)rm.dual.boundary_vertices_added, (unsigned long long)r.output_topology.faces,
                    r.output_quality.q_avg, r.output_quality.percent_angles_below_30);
       std::fprintf(stderr, "  loops  %u + %u, repair rounds %u; time %.2f s (load %.2f, clustering %.2f); peak %.0f MB\n",
-                   cr.unconstrained_loops, cr.constrained_loops, rm.repair_rounds_used, total, r.load_seconds,
+                   cr.unconstrained_loops, cr.constrained_loops, rm.repair.rounds, total, r.load_seconds,
                    rm.seconds.clustering, double(peak_rss_bytes()) / 1e6);
       std::fprintf(stderr, "  checks %s\n", all_ok ? "all passed" : "FAILED (below)");
     }

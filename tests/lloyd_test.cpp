@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -136,7 +137,9 @@ TEST(Lloyd, ConvergedLloydIsAFixedPoint) {
   ClusteringOptions options = Sampled::lloyd_job(Metric::I, 500);
   options.lloyd.keep_best = false;
   ClusteringReport r = lloyd_clustering(s.m.view, s.items, labels, s.K, options);
-  if (r.moves_per_loop.back() != 0) GTEST_SKIP() << "Lloyd did not converge here (paper §VII: it need not)";
+  // Lloyd need not converge (paper §VII), but on this input it does (after 18 iterations).
+  ASSERT_EQ(r.moves_per_loop.back(), 0u) << "no convergence in " << r.unconstrained_loops << " iterations";
+  std::printf("[ lloyd    ] converged after %u iterations\n", r.unconstrained_loops);
   const std::vector<int32_t> fixed = labels;
   ClusteringReport again = lloyd_clustering(s.m.view, s.items, labels, s.K, options);
   EXPECT_EQ(again.moves_per_loop.front(), 0u);

@@ -292,15 +292,15 @@ TEST(ParallelClustering, OneThreadIsReproducibleWhateverTheStorage) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, kTbbThreads);
   const MeshBuffers torus = make_torus(60, 24);
   MeshStore store = MeshStore::build(torus.view(), {.faces_per_chunk = 500});
-  RemeshOptions a;
-  a.vertices = 150;
-  a.clustering.metric = Metric::I;
-  a.clustering.loops.threads = 1;
-  a.clustering.loops.region_vertices = 64;  // many regions and visits
-  const RemeshResult ra = remesh(store.view(), a), rb = remesh(store.view(), a);
-  EXPECT_TRUE(test::to_vector(ra.cluster_of_vertex) == test::to_vector(rb.cluster_of_vertex));
-  EXPECT_TRUE(ra.mesh.positions == rb.mesh.positions);
-  EXPECT_EQ(ra.clustering.final_energy, rb.clustering.final_energy);
+  RemeshOptions a = options_for(150, Metric::I, 1, false, 64);  // many regions and visits
+  WorkSpace files("", 0);  // every array sized by V in a mapped work file
+  const RemeshResult ra = remesh(store.view(), a), rb = remesh(store.view(), a), rf = remesh(store.view(), a, files);
+  EXPECT_GT(files.peak_file_bytes(), 0u);
+  for (const RemeshResult* r : {&rb, &rf}) {
+    EXPECT_TRUE(test::to_vector(ra.cluster_of_vertex) == test::to_vector(r->cluster_of_vertex));
+    EXPECT_TRUE(ra.mesh.positions == r->mesh.positions);
+    EXPECT_EQ(ra.clustering.final_energy, r->clustering.final_energy);
+  }
   EXPECT_GT(ra.clustering.moves_per_loop.size(), 1u);
 }
 

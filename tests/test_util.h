@@ -36,6 +36,8 @@ inline ClusteringOptions metric_i_one_thread() {
   o.loops.threads = 1;
   return o;
 }
+/// Appends `piece` to `soup`, moved by (dx, dy, dz): a soup of several components.
+void append_shifted(MeshBuffers& soup, const MeshBuffers& piece, float dx, float dy, float dz = 0);
 /// A fresh empty directory under the system temp dir, unique per call.
 std::filesystem::path temp_dir(const std::string& tag);
 

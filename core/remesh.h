@@ -1,5 +1,7 @@
-// The remeshing pipeline on a mesh view: items → component budget → initial sampling →
-// clustering (unconstrained, clean, constrained) → dual mesh → manifold check and local repair.
+// The remeshing pipeline on a mesh view, stage by stage: curvature fields → items → component
+// budget, initial sampling and clustering (at the cluster count the boundary strips leave) →
+// repair of the dual's defects → dual mesh → placement of the output vertices → quality pass →
+// checks → carried attributes. What the metric asks of each stage is decided once (RemeshPlan).
 #pragma once
 
 #include <cstdint>
@@ -7,11 +9,14 @@
 #include <vector>
 
 #include "streamcvd/core/clustering/clustering.h"
-#include "streamcvd/core/mesh/component_topology.h"
 #include "streamcvd/core/dual/dual_mesh.h"
+#include "streamcvd/core/dual/mesh_optimize.h"
+#include "streamcvd/core/dual/repair.h"
+#include "streamcvd/core/dual/strip_shape.h"
+#include "streamcvd/core/mesh/component_topology.h"
+#include "streamcvd/core/mesh/flat_faces.h"
 #include "streamcvd/core/mesh/large_array.h"
 #include "streamcvd/core/mesh/mesh_buffers.h"
-#include "streamcvd/core/dual/mesh_optimize.h"
 #include "streamcvd/core/mesh/mesh_view.h"
 #include "streamcvd/core/mesh/progress.h"
 #include "streamcvd/core/mesh/vertex_attributes.h"
@@ -30,7 +35,7 @@ struct RemeshOptions {
   /// some seeds need 13–32 rounds (a round fixes most defects but its splits make new ones);
   /// 12 left those to the cleanup, which deletes faces and vertices. Rounds cost O(V) each.
   uint32_t repair_rounds = 40;
-  ClusteringOptions clustering;
+  ClusteringOptions clustering;  ///< metric, algorithm and loops; the defaults are the CLI's (IQ, all cores)
   std::vector<float> density;  ///< optional ρ per vertex (size V), empty = uniform
   /// Gradation γ of eq. 20: ρ_j multiplied by the clamped curvature magnitude to the power γ
   /// (0 = uniform). With A/AQ it shapes only the initial sampling, as in the paper.
@@ -62,6 +67,72 @@ struct StageTimes {
   double clustering_cpu = 0;  ///< CPU seconds of all threads during the clustering stage
 };
 
+/// What the options ask of the stages, decided once from the metric and the options at the
+/// start of remesh() (plan_remesh); no stage looks at the metric itself.
+struct RemeshPlan {
+  Metric metric = Metric::IQ;  ///< options.clustering.metric
+  bool lloyd = false;          ///< Lloyd instead of Algorithm 1; the repair then keeps the clusters as Lloyd left them
+  bool curvature = false;      ///< the curvature fit runs: for the gradation density or the tensors
+  bool gradation = false;      ///< ρ multiplied by the eq. 20 curvature factor
+  /// A/AQ: item tensors of the curvature (eq. 16, area-weighted energy); the initial sampling
+  /// uses items of its own, weighted by the metric's area factor (and ρ).
+  bool tensors = false;
+  /// IQ/AQ: vertex quadrics; the sites are QEM points (§V-C), those of needle triangles revert
+  /// to the centroids, and the quality pass keeps their offset from the surface.
+  bool quadrics = false;
+  bool optimize = true;        ///< the quality pass runs (options.optimize_quality)
+  /// The quality pass as it runs: for QEM points the feature angle qem_feature_angle_deg and the
+  /// surface offset kept; without projection onto the surface, flips only.
+  MeshOptimizeOptions optimize_options;
+};
+
+/// The plan of `options`. Throws std::invalid_argument for the Lloyd algorithm with A or AQ (only
+/// I and IQ are implemented). O(1), pure.
+RemeshPlan plan_remesh(const RemeshOptions& options);
+
+/// The dual stage: the dual of the repaired clustering with its sites as vertices.
+struct DualReport {
+  double final_energy = 0;               ///< energy − ΣA_j of the final clustering under its metric
+  /// N minus the dual's vertices after the repair (clusters + strip vertices): 0 when the
+  /// output has exactly N vertices; < 0 when the budget could not shrink that far.
+  int64_t vertex_shortfall = 0;
+  uint64_t duplicate_faces_removed = 0;
+  uint64_t boundary_vertices_added = 0;  ///< §VI-D strip vertices
+  uint64_t holes_closed = 0;             ///< boundary loops below the output resolution, closed
+};
+
+/// The placement stage: output vertices at the sites, then the last-resort defect cleanup.
+struct PlacementReport {
+  uint64_t sites_reverted = 0;  ///< Q metrics: QEM sites of needle triangles moved back to the centroid
+  /// Faces deleted by the last-resort cleanup (holes opened) and vertices deleted with them
+  /// (the output then has fewer than N).
+  DefectRemoval defects_removed;
+  uint64_t defect_vertices = 0;  ///< output vertices still on a defect at the end (0 = valid)
+};
+
+/// The quality post-pass (core/dual/mesh_optimize.h, core/dual/strip_shape.h).
+struct QualityPassReport {
+  MeshOptimizeReport interior;  ///< flips and tangential moves over the whole output
+  StripShapeReport strips;      ///< strip slides, moves of their cluster neighbours, flips (with relaxation only)
+  uint64_t flips() const { return interior.flips + strips.flips; }
+  uint64_t strip_moves() const { return strips.strip_moves + strips.cluster_moves; }
+};
+
+/// The checks stage: the flat-face safety net, then what the output is checked for.
+struct OutputChecks {
+  FlatFaceRepair flat_faces;  ///< zero-area faces along strips removed, flipped or nudged (core/mesh/flat_faces.h)
+  /// Q of the faces with a corner at a boundary-strip vertex (count, Qmin, Qav) and of the others.
+  StripQuality strips;
+  bool clusters_connected = false;
+  int64_t input_euler_characteristic = 0, output_euler_characteristic = 0;
+  /// Closed input whose output lost or gained handles, or had holes opened by the last-resort
+  /// cleanup: the budget is too coarse for a feature. Reported, never silent.
+  bool topology_changed = false;
+  /// Each input component with clusters is one output component, same genus, no more loops.
+  ComponentCheck components;
+};
+
+/// The result of remesh(): the output and, stage by stage, what each stage reported.
 struct RemeshResult {
   MeshBuffers mesh;                  ///< output vertices (cluster representatives) and triangles
   /// options.attributes.columns.size() floats per output vertex (in mesh order): the carried
@@ -72,48 +143,27 @@ struct RemeshResult {
   /// the vertex count exact may take. The output has one vertex per non-empty cluster.
   uint32_t clusters = 0;
   ComponentBudget budget;
-  ClusteringReport clustering;
+  ClusteringReport clustering;       ///< the last clustering pass, then the repair's relaxation loops
   StageTimes seconds;
-  double final_energy = 0;           ///< energy − ΣA_j of the final clustering under its metric
-  uint32_t repair_rounds_used = 0;
-  uint32_t repair_count_rounds = 0;  ///< of repair_rounds_used, rounds for the vertex target only
-  uint64_t repaired_clusters = 0;    ///< clusters touched by the repair
-  uint64_t repair_splits = 0, repair_merges = 0, repair_islands = 0;
-  bool repair_relaxed = false;
-  /// N minus the dual's vertices after the repair (clusters + strip vertices): 0 when the
-  /// output has exactly N vertices; < 0 when the budget could not shrink that far.
-  int64_t vertex_shortfall = 0;
-  uint64_t sites_reverted = 0;       ///< Q metrics: QEM sites of needle triangles moved back to the centroid       ///< the repaired region was relaxed without new defects
-  uint64_t defect_vertices = 0;      ///< output vertices still on a defect at the end (0 = valid)
-  uint64_t defect_faces_removed = 0;   ///< faces deleted by the last-resort cleanup (holes opened)
-  uint64_t defect_vertices_removed = 0;  ///< vertices deleted with them (output has fewer than N)
-  uint64_t flat_faces_removed = 0;   ///< zero-area faces dropped along the boundary (core/mesh/flat_faces.h)
-  uint64_t flat_face_flips = 0;      ///< zero-area faces removed by an edge flip or a few-ulp vertex move
-  uint64_t duplicate_faces_removed = 0;
-  uint64_t boundary_vertices_added = 0;
-  uint64_t holes_closed = 0;
-  uint64_t quality_flips = 0, quality_moves = 0;  ///< edits of the quality post-pass
-  uint64_t strip_moves = 0;  ///< strip and strip-adjacent vertex moves of the quality pass (core/dual/strip_shape.h)
-  /// Faces with a corner at a boundary-strip vertex: count, Qmin, Qav (and the others' Qav).
-  uint64_t strip_faces = 0;
-  double strip_q_min = 0, strip_q_avg = 0, other_q_avg = 0;
-  bool clusters_connected = false;
-  int64_t input_euler_characteristic = 0, output_euler_characteristic = 0;
-  /// Closed input whose output lost or gained handles, or had holes opened by the last-resort
-  /// cleanup: the budget is too coarse for a feature. Reported, never silent.
-  bool topology_changed = false;
-  /// Each input component with clusters is one output component, same genus, no more loops.
-  ComponentCheck components;
+  DefectRepairResult repair;         ///< the last repair run (rounds, splits, merges, islands, relaxed)
+  DualReport dual;
+  PlacementReport placement;
+  QualityPassReport quality;         ///< zero when the quality pass is off
+  OutputChecks checks;
 };
 
 /// Remeshes `mesh` to `options.vertices` clusters under options.clustering.metric (I, IQ, A,
 /// AQ; §V). The output vertex of each cluster is its site: the centroid projected onto the
 /// surface (I, A) or the QEM point (IQ, AQ); strips add vertices along boundaries. Checks the dual for
 /// non-manifold edges/vertices, isolated vertices and duplicate faces, and repairs the
-/// clustering around each defect (core/dual/repair.h, up to repair_rounds). Deterministic for a seed with
-/// clustering.threads = 1 (default) or clustering.deterministic (any thread count); otherwise
-/// the parallel clustering may differ between runs (core/clustering/parallel_clustering.h).
-/// Arrays sized by the input come from `storage` (RAM, or the pipeline's work files).
+/// clustering around each defect (core/dual/repair.h, up to repair_rounds). Deterministic for a
+/// seed with clustering.loops.threads = 1 or clustering.loops.deterministic (any thread count);
+/// otherwise (the default: all cores) the parallel clustering may differ between runs
+/// (core/clustering/parallel_clustering.h). Arrays sized by the input come from `storage` (RAM,
+/// or the pipeline's work files), the clustering's included (clustering.loops.storage is not
+/// read). The stages, in order: curvature, items, sampling and clustering, repair, dual,
+/// placement, optimize, checks, attributes. Throws InputError when no valid surface can be built
+/// at this N; std::invalid_argument as plan_remesh.
 RemeshResult remesh(const MeshView& mesh, const RemeshOptions& options, ArrayStorage& storage = ram_storage());
 
 }  // namespace streamcvd

@@ -135,7 +135,6 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   }
   if (!columns.empty())  // a subdivided store has every column of the input's
     remesh_options.attributes = {remeshed.vertex_attributes(), remeshed.header().attribute_count, columns};
-  remesh_options.clustering.storage = &space;
   remesh_options.keep_vertex_labels = false;  // only the output mesh leaves the job
   remesh_options.progress = options.progress;
   result.remesh = remesh(view, remesh_options, space);

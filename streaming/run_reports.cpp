@@ -217,7 +217,7 @@ nlohmann::json StageIoLog::json() const {
 nlohmann::json guarantee_checks(const PipelineResult& r, uint32_t requested, bool& all_ok) {
   const TopologyStats& out = r.output_topology;
   const RemeshResult& rm = r.remesh;
-  uint64_t cluster_vertices = out.vertices - rm.boundary_vertices_added;
+  uint64_t cluster_vertices = out.vertices - rm.dual.boundary_vertices_added;
   bool closed_in = r.input.closed;
   bool single_component = r.input.components == 1;
   nlohmann::json j = {
@@ -229,11 +229,11 @@ nlohmann::json guarantee_checks(const PipelineResult& r, uint32_t requested, boo
       {"output_duplicate_faces", out.duplicate_faces},
       {"output_degenerate_faces", out.degenerate_faces},
       {"output_isolated_vertices", out.isolated_vertices},
-      {"clusters_connected", rm.clusters_connected},
-      {"defect_vertices_after_repair", rm.defect_vertices},
+      {"clusters_connected", rm.checks.clusters_connected},
+      {"defect_vertices_after_repair", rm.placement.defect_vertices},
       {"requested_vertices", requested},
       {"cluster_vertices", cluster_vertices},
-      {"boundary_strip_vertices", rm.boundary_vertices_added},
+      {"boundary_strip_vertices", rm.dual.boundary_vertices_added},
       {"exact_vertex_count", out.vertices == requested},
       {"input_euler_characteristic", r.input.euler_characteristic},
       {"output_euler_characteristic", out.euler_characteristic},
@@ -247,21 +247,21 @@ nlohmann::json guarantee_checks(const PipelineResult& r, uint32_t requested, boo
   else if (closed_in) j["euler_characteristic_preserved"] = genus_ok;
   j["manifold_ok"] = manifold_ok;
   j["closed_ok"] = closed_ok;
-  j["topology_changed"] = rm.topology_changed;
-  const bool components_ok = rm.components.ok();
+  j["topology_changed"] = rm.checks.topology_changed;
+  const bool components_ok = rm.checks.components.ok();
   j["components_ok"] = components_ok;
-  j["input_components_with_clusters"] = rm.components.input_components;
-  j["output_components"] = rm.components.output_components;
-  if (!components_ok) j["component_problems"] = rm.components.problems;
+  j["input_components_with_clusters"] = rm.checks.components.input_components;
+  j["output_components"] = rm.checks.components.output_components;
+  if (!components_ok) j["component_problems"] = rm.checks.components.problems;
   // Against the input as cleaned (its sheets and their boundaries, streaming/store/store_clean.h): a
   // hole below the output resolution may close, none may open; no piece may come apart.
-  const bool holes_ok = out.boundary_loops <= rm.components.input_boundary_loops;
-  const bool pieces_ok = out.components <= rm.components.input_components;
-  j["cleaned_input_boundary_loops"] = rm.components.input_boundary_loops;
+  const bool holes_ok = out.boundary_loops <= rm.checks.components.input_boundary_loops;
+  const bool pieces_ok = out.components <= rm.checks.components.input_components;
+  j["cleaned_input_boundary_loops"] = rm.checks.components.input_boundary_loops;
   j["output_boundary_loops"] = out.boundary_loops;
   j["holes_ok"] = holes_ok;
   j["pieces_ok"] = pieces_ok;
-  all_ok = manifold_ok && closed_ok && genus_ok && !rm.topology_changed && rm.defect_vertices == 0 && components_ok &&
+  all_ok = manifold_ok && closed_ok && genus_ok && !rm.checks.topology_changed && rm.placement.defect_vertices == 0 && components_ok &&
            holes_ok && pieces_ok;
   j["all_ok"] = all_ok;
   return j;
@@ -306,12 +306,14 @@ nlohmann::json remesh_report(const PipelineResult& r, const PipelineOptions& opt
   const RemeshOptions& o = options.remesh;
   const RemeshResult& rm = r.remesh;
   const ClusteringReport& cr = rm.clustering;
+  const DefectRepairResult& repair = rm.repair;
+  const PlacementReport& placement = rm.placement;
+  const FlatFaceRepair& flat = rm.checks.flat_faces;
   bool all_ok = false;
   const nlohmann::json checks = guarantee_checks(r, o.vertices, all_ok);
   const std::string subdivide = options.subdivide < 0    ? "auto"
                             : options.subdivide == 0 ? "none"
                                                      : std::to_string(options.subdivide);
-  const bool lloyd = o.clustering.algorithm == ClusteringOptions::Algorithm::Lloyd;
   nlohmann::json j;
   j["input"] = {{"file", job.input},
                 {"vertices", r.input.vertices},
@@ -324,17 +326,17 @@ nlohmann::json remesh_report(const PipelineResult& r, const PipelineOptions& opt
                 {"remeshed_faces", r.remeshed_faces}};
   if (r.input_build.topology_checked) j["cleaning"] = cleaning_json(r.input_build);
   j["options"] = {{"vertices", o.vertices},
-                  {"threads", o.clustering.threads},
-                  {"clustering_threads", clustering_thread_count(o.clustering.threads)},
-                  {"deterministic", o.clustering.deterministic},
+                  {"threads", o.clustering.loops.threads},
+                  {"clustering_threads", clustering_thread_count(o.clustering.loops.threads)},
+                  {"deterministic", o.clustering.loops.deterministic},
                   {"seed", o.seed},
                   {"metric", metric_name(rm.clustering.metric)},
-                  {"algorithm", lloyd ? "lloyd" : "cvd"},
+                  {"algorithm", algorithm_name(o.clustering.algorithm)},
                   {"gradation", o.gradation},
                   {"curvature_rings", o.curvature_rings},
                   {"qem_threshold", o.clustering.qem_threshold},
                   {"subdivide", subdivide},
-                  {"small_components", o.small_components == SmallComponents::Drop ? "drop" : "keep"},
+                  {"small_components", small_components_name(o.small_components)},
                   {"boundary_strips", o.boundary_strips},
                   {"vertex_placement", uses_quadrics(rm.clustering.metric) ? "QEM point"
                                        : !o.project_to_surface                   ? "centroid"
@@ -358,24 +360,25 @@ nlohmann::json remesh_report(const PipelineResult& r, const PipelineOptions& opt
                      {"seconds_per_loop", cr.seconds_per_loop},
                      {"cleaned_vertices", cr.cleaned_vertices},
                      {"disconnected_clusters_cleaned", cr.disconnected_clusters},
-                     {"final_energy", rm.final_energy},
+                     {"final_energy", rm.dual.final_energy},
                      {"clustering_energy", cr.final_energy},
-                     {"repair_rounds", rm.repair_rounds_used},
-                     {"repair_count_rounds", rm.repair_count_rounds},
-                     {"repaired_clusters", rm.repaired_clusters},
-                     {"repair_splits", rm.repair_splits},
-                     {"repair_merges", rm.repair_merges},
-                     {"repair_islands_dissolved", rm.repair_islands},
-                     {"repair_relaxed", rm.repair_relaxed},
-                     {"qem_sites_reverted", rm.sites_reverted},
-                     {"flat_faces_removed", rm.flat_faces_removed},
-                     {"flat_faces_flipped_or_nudged", rm.flat_face_flips},
-                     {"defect_faces_removed", rm.defect_faces_removed},
-                     {"defect_vertices_removed", rm.defect_vertices_removed}};
-  j["quality_pass"] = {{"enabled", o.optimize_quality}, {"flips", rm.quality_flips}, {"moves", rm.quality_moves},
-                       {"strip_moves", rm.strip_moves}};
-  j["strips"] = {{"faces", rm.strip_faces}, {"q_min", rm.strip_q_min}, {"q_avg", rm.strip_q_avg},
-                 {"other_q_avg", rm.other_q_avg}};
+                     {"repair_rounds", repair.rounds},
+                     {"repair_count_rounds", repair.count_rounds},
+                     {"repaired_clusters", repair.repaired_clusters},
+                     {"repair_splits", repair.splits},
+                     {"repair_merges", repair.merges},
+                     {"repair_islands_dissolved", repair.islands},
+                     {"repair_relaxed", repair.relaxed},
+                     {"qem_sites_reverted", placement.sites_reverted},
+                     {"flat_faces_removed", flat.faces_removed},
+                     {"flat_faces_flipped_or_nudged", flat.flips + flat.nudges},
+                     {"defect_faces_removed", placement.defects_removed.faces_removed},
+                     {"defect_vertices_removed", placement.defects_removed.vertices_removed}};
+  j["quality_pass"] = {{"enabled", o.optimize_quality}, {"flips", rm.quality.flips()},
+                       {"moves", rm.quality.interior.moves}, {"strip_moves", rm.quality.strip_moves()}};
+  const StripQuality& strips = rm.checks.strips;
+  j["strips"] = {{"faces", strips.strip_faces}, {"q_min", strips.strip_q_min}, {"q_avg", strips.strip_q_avg},
+                 {"other_q_avg", strips.other_q_avg}};
   j["components"] = {{"count", rm.budget.clusters_per_component.size()},
                      {"small_kept", rm.budget.small_components_kept},
                      {"dropped", rm.budget.components_dropped}};
@@ -384,8 +387,8 @@ nlohmann::json remesh_report(const PipelineResult& r, const PipelineOptions& opt
                  {"faces", r.output_topology.faces},
                  {"boundary_edges", r.output_topology.boundary_edges},
                  {"boundary_loops", r.output_topology.boundary_loops},
-                 {"holes_closed", rm.holes_closed},
-                 {"duplicate_faces_removed", rm.duplicate_faces_removed},
+                 {"holes_closed", rm.dual.holes_closed},
+                 {"duplicate_faces_removed", rm.dual.duplicate_faces_removed},
                  {"components", r.output_topology.components}};
   j["attributes"] = attributes_json(r, job.output);
   j["quality"] = quality_json(r.output_quality);

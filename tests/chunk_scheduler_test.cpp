@@ -85,7 +85,7 @@ TEST(ChunkScheduler, MappedStoreRemeshesAsInRam) {
   MappedElephant m;
   PipelineOptions o;
   o.remesh.vertices = 1200;
-  o.remesh.clustering.threads = 1;
+  o.remesh.clustering = test::metric_i_one_thread();
   o.subdivide = 0;
   o.memory_limit = 64ull << 20;  // a resident budget of 64 MiB; the tight case is tested above
   const PipelineResult mapped = remesh_store(m.mapped, o);

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <random>
+#include <stdexcept>
 #include <vector>
 
 #include "streamcvd/core/clustering/clustering.h"
@@ -114,13 +115,18 @@ TEST(ClusterEnergy, IsotropicTensorsReduceAnisotropicToIsotropic) {
     }
 }
 
-TEST(ClusterEnergy, MetricsFallBackWithoutTheirData) {
+TEST(ClusterEnergy, MetricsWithoutTheirDataAreAnError) {
+  // A metric is never swapped for another: items without tensors (A, AQ) or quadrics (IQ, AQ)
+  // are refused, and with them the state has the metric asked for.
   Fixture f;
   ItemData plain = compute_item_data(f.mesh.view);
-  EXPECT_EQ(make_cluster_state(plain, f.labels, f.K, Metric::AQ).metric, Metric::I);
-  EXPECT_EQ(make_cluster_state(plain, f.labels, f.K, Metric::A).metric, Metric::I);
+  for (Metric m : {Metric::IQ, Metric::A, Metric::AQ})
+    EXPECT_THROW(make_cluster_state(plain, f.labels, f.K, m), std::invalid_argument) << metric_name(m);
+  EXPECT_EQ(make_cluster_state(plain, f.labels, f.K, Metric::I).metric, Metric::I);
   plain.quadric = f.items.quadric.clone();
-  EXPECT_EQ(make_cluster_state(plain, f.labels, f.K, Metric::AQ).metric, Metric::IQ);
+  EXPECT_EQ(make_cluster_state(plain, f.labels, f.K, Metric::IQ).metric, Metric::IQ);
+  EXPECT_THROW(make_cluster_state(plain, f.labels, f.K, Metric::AQ), std::invalid_argument);
+  EXPECT_EQ(make_cluster_state(f.items, f.labels, f.K, Metric::AQ).metric, Metric::AQ);
 }
 
 TEST(ClusterEnergy, QemSitesStayNearTheirClusters) {
@@ -147,6 +153,7 @@ TEST(ClusterEnergy, AnisotropicPassesNeverRaiseTheEnergy) {
   Fixture f;
   ClusteringOptions o;
   o.metric = Metric::A;
+  o.loops.threads = 1;
   std::vector<int32_t> labels = f.labels;
   ClusteringReport r = minimize_clustering(f.mesh.view, f.items, labels, f.K, o);
   EXPECT_EQ(r.metric, Metric::A);

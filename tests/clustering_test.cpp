@@ -257,7 +257,7 @@ TEST(ClusteringMinimize, EnergyNeverIncreasesWithinEachPass) {
       std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, seed, ram_storage()));
       const double initial = clustering_energy(items, accumulate_clusters(items, labels, K));
 
-      ClusteringReport report = minimize_clustering(m.view, items, labels, K);
+      ClusteringReport report = minimize_clustering(m.view, items, labels, K, test::metric_i_one_thread());
       const auto& e = report.energy_per_loop;
       ASSERT_EQ(e.size(), size_t(report.unconstrained_loops) + report.constrained_loops);
       ASSERT_GE(report.unconstrained_loops, 1u);
@@ -288,6 +288,7 @@ TEST(ClusteringMinimize, PassByPassEnergyMonotoneWithAndWithoutSkip) {
     ClusterState state = make_cluster_state(items, labels, K, Metric::I);
     ClusteringReport free_pass;
     LoopOptions pass;
+    pass.threads = 1;
     pass.skip_unchanged = skip;
     uint32_t loops = run_clustering_loops(m.view, items, labels, state, pass, free_pass);
     EXPECT_EQ(loops, free_pass.energy_per_loop.size());
@@ -315,7 +316,7 @@ TEST(ClusteringMinimize, EveryClusterConnectedAfterConstrainedPass) {
       ComponentBudget b = plan_component_budget(m.view, items, c.clusters, SmallComponents::Keep, ram_storage());
       const uint32_t K = b.total_clusters;
       std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, seed, ram_storage()));
-      minimize_clustering(m.view, items, labels, K);
+      minimize_clustering(m.view, items, labels, K, test::metric_i_one_thread());
       expect_valid_labels(m.view, labels, K);
       EXPECT_TRUE(clusters_connected(m.view, labels, K));
       EXPECT_TRUE(every_cluster_connected_bfs(m.view, labels, K));
@@ -336,6 +337,7 @@ TEST(ClusteringMinimize, InactiveClustersAreNotTested) {
   ClusteringReport none;
   std::vector<uint8_t> inactive(K, 0);
   LoopOptions pass;
+  pass.threads = 1;
   pass.max_loops = 100;
   run_clustering_loops(m.view, items, labels, state, pass, none, inactive);
   EXPECT_EQ(none.moves_per_loop.front(), 0u);
@@ -354,11 +356,12 @@ TEST(ClusteringMinimize, ConvergedClusteringIsAFixedPoint) {
   ItemData items = compute_item_data(m.view);
   ComponentBudget b = plan_component_budget(m.view, items, 80, SmallComponents::Keep, ram_storage());
   std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 9, ram_storage()));
-  minimize_clustering(m.view, items, labels, b.total_clusters);
+  minimize_clustering(m.view, items, labels, b.total_clusters, test::metric_i_one_thread());
   std::vector<int32_t> before = labels;
   ClusterState state = make_cluster_state(items, labels, b.total_clusters, Metric::I);
   ClusteringReport again;
   LoopOptions pass;
+  pass.threads = 1;
   pass.constrained = true;
   pass.max_loops = 10;
   pass.skip_unchanged = false;
@@ -374,7 +377,7 @@ TEST(ClusteringMinimize, ClustersOnAFlatGridAreCompactAndBalanced) {
   ItemData items = compute_item_data(m.view);
   ComponentBudget b = plan_component_budget(m.view, items, 36, SmallComponents::Keep, ram_storage());
   std::vector<int32_t> labels = test::to_vector(initial_sampling(m.view, items, b, 1, ram_storage()));
-  minimize_clustering(m.view, items, labels, b.total_clusters);
+  minimize_clustering(m.view, items, labels, b.total_clusters, test::metric_i_one_thread());
   std::vector<ClusterSums> sums = accumulate_clusters(items, labels, b.total_clusters);
   double lo = 1e300, hi = 0;
   for (const ClusterSums& s : sums) {

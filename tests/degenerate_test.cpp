@@ -16,6 +16,7 @@
 #include "streamcvd/core/measure/shapes.h"
 #include "streamcvd/streaming/remesh_pipeline.h"
 #include "streamcvd/streaming/store/store.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
@@ -178,7 +179,7 @@ void expect_valid_output(const PipelineResult& r, const std::string& what) {
   EXPECT_EQ(s.nonmanifold_vertices, 0u) << what;
   EXPECT_EQ(s.duplicate_faces, 0u) << what;
   EXPECT_EQ(s.isolated_vertices, 0u) << what;
-  EXPECT_EQ(r.remesh.defect_vertices, 0u) << what;
+  EXPECT_EQ(r.remesh.placement.defect_vertices, 0u) << what;
   EXPECT_EQ(r.output_topology.faces, s.faces) << what;
 }
 
@@ -193,6 +194,7 @@ TEST_P(DegenerateRemesh, EndsWithValidMeshOrInputError) {
                                (small == SmallComponents::Keep ? " keep" : " drop");
       SCOPED_TRACE(what);
       PipelineOptions options;
+      options.remesh.clustering = test::metric_i_one_thread();
       options.remesh.vertices = n;
       options.remesh.small_components = small;
       try {
@@ -202,13 +204,13 @@ TEST_P(DegenerateRemesh, EndsWithValidMeshOrInputError) {
           std::printf("%s: V %llu F %llu clusters %u loops %u+%u repair %u defects %llu removed %llu\n", what.c_str(),
                       (unsigned long long)r.output_topology.vertices, (unsigned long long)r.output_topology.faces,
                       r.remesh.clusters, r.remesh.clustering.unconstrained_loops, r.remesh.clustering.constrained_loops,
-                      r.remesh.repair_rounds_used, (unsigned long long)r.remesh.defect_vertices,
-                      (unsigned long long)r.remesh.defect_faces_removed);
+                      r.remesh.repair.rounds, (unsigned long long)r.remesh.placement.defect_vertices,
+                      (unsigned long long)r.remesh.placement.defects_removed.faces_removed);
         expect_valid_output(r, what);
         // Loops are bounded by the options, whatever the input.
-        EXPECT_LE(r.remesh.clustering.unconstrained_loops, options.remesh.clustering.max_loops) << what;
-        EXPECT_LE(r.remesh.clustering.constrained_loops, options.remesh.clustering.max_loops) << what;
-        EXPECT_LE(r.remesh.repair_rounds_used, options.remesh.repair_rounds) << what;
+        EXPECT_LE(r.remesh.clustering.unconstrained_loops, options.remesh.clustering.loops.max_loops) << what;
+        EXPECT_LE(r.remesh.clustering.constrained_loops, options.remesh.clustering.loops.max_loops) << what;
+        EXPECT_LE(r.remesh.repair.rounds, options.remesh.repair_rounds) << what;
       } catch (const InputError& e) {
         // Acceptable: a clear one-line message.
         const std::string msg = e.what();
@@ -226,6 +228,7 @@ INSTANTIATE_TEST_SUITE_P(Cases, DegenerateRemesh, ::testing::Range<size_t>(0, ca
 
 PipelineResult run(const MeshBuffers& mesh, uint32_t n, SmallComponents small = SmallComponents::Keep) {
   PipelineOptions options;
+  options.remesh.clustering = test::metric_i_one_thread();
   options.remesh.vertices = n;
   options.remesh.small_components = small;
   MeshStore store = MeshStore::build(mesh.view());

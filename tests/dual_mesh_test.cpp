@@ -307,7 +307,7 @@ TEST(DualMesh, ConvergedClusteringOfASphereGivesAClosedManifold) {
   const uint32_t K = 120;
   ComponentBudget b = plan_component_budget(view, items, K, SmallComponents::Keep, ram_storage());
   std::vector<int32_t> labels = test::to_vector(initial_sampling(view, items, b, 17, ram_storage()));
-  minimize_clustering(view, items, labels, K);
+  minimize_clustering(view, items, labels, K, test::metric_i_one_thread());
   std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
   std::vector<double> z(3 * K);
   for (uint32_t c = 0; c < K; ++c)

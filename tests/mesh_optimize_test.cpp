@@ -218,16 +218,17 @@ void check_closed(const std::string& name, const MeshBuffers& input, int64_t gen
   RemeshOptions o;
   o.vertices = n;
   o.clustering.metric = metric;
+  o.clustering.loops.threads = 1;
   o.optimize_quality = false;
   const RemeshResult off = remesh(store.view(), o);
   o.optimize_quality = true;
   const RemeshResult on = remesh(store.view(), o);
   const QualityStats q_off = compute_quality(off.mesh.view()), q_on = compute_quality(on.mesh.view());
   std::printf("[ closed   ] %-9s N=%-5u %-2s Qav %.4f -> %.4f (%llu flips, %llu moves)\n", name.c_str(), n,
-              metric_name(metric), q_off.q_avg, q_on.q_avg, (unsigned long long)on.quality_flips,
-              (unsigned long long)on.quality_moves);
+              metric_name(metric), q_off.q_avg, q_on.q_avg, (unsigned long long)on.quality.flips(),
+              (unsigned long long)on.quality.interior.moves);
   EXPECT_GT(q_on.q_avg, q_off.q_avg);
-  EXPECT_GT(on.quality_moves, 0u);
+  EXPECT_GT(on.quality.interior.moves, 0u);
   const TopologyStats t = compute_topology_stats(on.mesh.view());
   EXPECT_TRUE(t.closed_manifold);
   EXPECT_TRUE(t.consistently_oriented);
@@ -236,7 +237,7 @@ void check_closed(const std::string& name, const MeshBuffers& input, int64_t gen
   EXPECT_EQ(t.nonmanifold_edges + t.nonmanifold_vertices + t.duplicate_faces + t.degenerate_faces + t.isolated_vertices, 0u);
   EXPECT_EQ(on.mesh.vertex_count(), n);
   EXPECT_EQ(on.mesh.face_count(), off.mesh.face_count());
-  EXPECT_FALSE(on.topology_changed);
+  EXPECT_FALSE(on.checks.topology_changed);
 }
 
 TEST(MeshOptimize, ClosedShapesKeepTopologyAndGainQuality) {

@@ -60,6 +60,7 @@ Remeshed run(const MeshBuffers& input, Metric metric, uint32_t n, double gradati
   RemeshOptions o;
   o.vertices = n;
   o.clustering.metric = metric;
+  o.clustering.loops.threads = 1;
   o.clustering.qem_threshold = qem_threshold;
   o.gradation = gradation;
   r.result = remesh(r.store.view(), o);
@@ -189,7 +190,7 @@ TEST(MetricAcceptance, FandiskSharpCornersKeptByIQ) {
       std::printf("[ metrics  ] fandisk N=3000 metric=%s qem_threshold=%g corners_kept=%zu/%zu (within %.1e of the "
                   "diagonal) median=%.2e max=%.2e sites_reverted=%llu\n",
                   metric_name(metric), threshold, kept, corners.size(), kTolerance, median(dist),
-                  *std::max_element(dist.begin(), dist.end()), (unsigned long long)r.result.sites_reverted);
+                  *std::max_element(dist.begin(), dist.end()), (unsigned long long)r.result.placement.sites_reverted);
       if (metric == Metric::IQ && threshold == 1e-2) kept_default = kept;
       if (metric == Metric::I) kept_isotropic = kept;
       if (metric == Metric::IQ && kept < corners.size()) {

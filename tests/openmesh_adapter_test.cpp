@@ -2,6 +2,7 @@
 
 #include "streamcvd/core/measure/shapes.h"
 #include "streamcvd/streaming/io/openmesh_adapter.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
@@ -20,6 +21,7 @@ TEST(OpenMeshAdapter, RemeshesTriMeshToClosedMeshWithNVertices) {
   MeshBuffers sphere = make_icosphere(4);
   OpenMeshTriMesh input = openmesh_from_soup(sphere.view());
   PipelineOptions options;
+  options.remesh.clustering = test::metric_i_one_thread();
   options.remesh.vertices = 300;
   PipelineResult result;
   OpenMeshTriMesh output = remesh_openmesh(input, options, &result);

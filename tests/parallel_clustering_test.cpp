@@ -50,9 +50,9 @@ RemeshOptions options_for(uint32_t n, Metric metric, uint32_t threads, bool dete
   RemeshOptions o;
   o.vertices = n;
   o.clustering.metric = metric;
-  o.clustering.threads = threads;
-  o.clustering.deterministic = deterministic;
-  o.clustering.region_vertices = region_vertices;
+  o.clustering.loops.threads = threads;
+  o.clustering.loops.deterministic = deterministic;
+  o.clustering.loops.region_vertices = region_vertices;
   return o;
 }
 
@@ -62,16 +62,16 @@ RemeshOptions options_for(uint32_t n, Metric metric, uint32_t threads, bool dete
 void expect_valid_closed_output(const RemeshResult& r, const TopologyStats& input, const std::string& what) {
   SCOPED_TRACE(what);
   const TopologyStats t = compute_topology_stats(r.mesh.view());
-  EXPECT_TRUE(r.clusters_connected);
-  EXPECT_EQ(r.defect_vertices, 0u);
+  EXPECT_TRUE(r.checks.clusters_connected);
+  EXPECT_EQ(r.placement.defect_vertices, 0u);
   EXPECT_EQ(t.nonmanifold_edges + t.nonmanifold_vertices + t.duplicate_faces + t.isolated_vertices, 0u);
   EXPECT_EQ(t.degenerate_faces, 0u);
   EXPECT_TRUE(t.consistently_oriented);
-  if (!r.topology_changed) {
+  if (!r.checks.topology_changed) {
     EXPECT_TRUE(t.closed_manifold);
     EXPECT_EQ(t.euler_characteristic, input.euler_characteristic);
   }
-  EXPECT_EQ(r.output_euler_characteristic, t.euler_characteristic);
+  EXPECT_EQ(r.checks.output_euler_characteristic, t.euler_characteristic);
 }
 
 TEST(ParallelClustering, ThreadCountResolves) {
@@ -96,9 +96,9 @@ TEST(ParallelClustering, EnergyWithinATenthOfAPercentOfSerial) {
   auto energy = [&](Metric metric, uint32_t threads, bool deterministic, std::vector<int32_t> labels) {
     ClusteringOptions o;
     o.metric = metric;
-    o.threads = threads;
-    o.deterministic = deterministic;
-    o.region_vertices = 2048;  // ~20 regions: many shared clusters
+    o.loops.threads = threads;
+    o.loops.deterministic = deterministic;
+    o.loops.region_vertices = 2048;  // ~20 regions: many shared clusters
     const ClusteringReport r = minimize_clustering(view, items, labels, budget.total_clusters, o);
     EXPECT_TRUE(clusters_connected(view, labels, budget.total_clusters));
     EXPECT_EQ(r.moves_per_loop.back(), 0u);  // the constrained pass converged
@@ -164,8 +164,9 @@ TEST(ParallelClustering, ConstrainedPassKeepsEveryClusterConnected) {
   for (uint32_t threads : {2u, 8u}) {
     std::vector<int32_t> labels = test::to_vector(initial_sampling(view, items, budget, 5, ram_storage()));
     ClusteringOptions o;
-    o.threads = threads;
-    o.region_vertices = 200;
+    o.metric = Metric::I;
+    o.loops.threads = threads;
+    o.loops.region_vertices = 200;
     const ClusteringReport rep = minimize_clustering(view, items, labels, budget.total_clusters, o);
     EXPECT_TRUE(clusters_connected(view, labels, budget.total_clusters)) << threads;
     std::vector<uint32_t> size(budget.total_clusters, 0);
@@ -291,14 +292,15 @@ TEST(ParallelClustering, OneThreadIsReproducibleWhateverTheStorage) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, kTbbThreads);
   const MeshBuffers torus = make_torus(60, 24);
   MeshStore store = MeshStore::build(torus.view(), {.faces_per_chunk = 500});
-  RemeshOptions a;
-  a.vertices = 150;
-  a.clustering.threads = 1;
-  a.clustering.region_vertices = 64;  // many regions and visits
-  const RemeshResult ra = remesh(store.view(), a), rb = remesh(store.view(), a);
-  EXPECT_TRUE(test::to_vector(ra.cluster_of_vertex) == test::to_vector(rb.cluster_of_vertex));
-  EXPECT_TRUE(ra.mesh.positions == rb.mesh.positions);
-  EXPECT_EQ(ra.clustering.final_energy, rb.clustering.final_energy);
+  RemeshOptions a = options_for(150, Metric::I, 1, false, 64);  // many regions and visits
+  WorkSpace files("", 0);  // every array sized by V in a mapped work file
+  const RemeshResult ra = remesh(store.view(), a), rb = remesh(store.view(), a), rf = remesh(store.view(), a, files);
+  EXPECT_GT(files.peak_file_bytes(), 0u);
+  for (const RemeshResult* r : {&rb, &rf}) {
+    EXPECT_TRUE(test::to_vector(ra.cluster_of_vertex) == test::to_vector(r->cluster_of_vertex));
+    EXPECT_TRUE(ra.mesh.positions == r->mesh.positions);
+    EXPECT_EQ(ra.clustering.final_energy, r->clustering.final_energy);
+  }
   EXPECT_GT(ra.clustering.moves_per_loop.size(), 1u);
 }
 
@@ -353,14 +355,14 @@ TEST(ParallelClustering, StressManySmallRandomRuns) {
     // each): reported, it is counted and bounded below; any other change is a failure.
     const bool aq_elephant = shapes[s].name == "elephant" && metric == Metric::AQ;
     aq_elephant_runs += aq_elephant;
-    if (r.topology_changed) {
+    if (r.checks.topology_changed) {
       // Report whether the serial clustering from the same seed keeps the topology here.
       RemeshOptions serial = o;
-      serial.clustering.threads = 1;
-      serial.clustering.deterministic = false;
+      serial.clustering.loops.threads = 1;
+      serial.clustering.loops.deterministic = false;
       const RemeshResult rs = remesh(stores[s].view(), serial);
       const std::string message = what + ": topology changed (serial from the same seed: " +
-                                  (rs.topology_changed ? "changed too" : "kept") + ")";
+                                  (rs.checks.topology_changed ? "changed too" : "kept") + ")";
       if (aq_elephant) std::printf("[ stress   ] %s\n", message.c_str());
       else ADD_FAILURE() << message;
       ++topology_changes;

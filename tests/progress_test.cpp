@@ -14,6 +14,7 @@
 #include "streamcvd/core/remesh.h"
 #include "streamcvd/core/measure/shapes.h"
 #include "streamcvd/streaming/store/store.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
@@ -93,6 +94,7 @@ TEST(StageReporter, CountsChunksPassesAndRounds) {
 TEST(StageReporter, RemeshReportsEveryStageInOrder) {
   const MeshStore store = MeshStore::build(make_torus(60, 40).view(), {.faces_per_chunk = 1000});
   RemeshOptions options;
+  options.clustering = test::metric_i_one_thread();
   options.vertices = 200;
   std::vector<std::string> started, finished;
   uint32_t loops = 0;
@@ -137,6 +139,7 @@ TEST(StageReporter, ARemeshWhoseCallbackThrowsStopsWithThatException) {
   const MeshStore store = MeshStore::build(make_torus(60, 40).view(), {.faces_per_chunk = 1000});
   for (const char* cancel_at : {"sampling", "clustering", "dual"}) {
     RemeshOptions options;
+    options.clustering = test::metric_i_one_thread();
     options.vertices = 200;
     std::vector<std::string> seen;
     options.progress = [&](const StageProgress& p) {

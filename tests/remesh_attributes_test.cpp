@@ -122,6 +122,7 @@ class RemeshAttributes : public ::testing::Test {
   }
   static PipelineOptions options(uint32_t n = 800) {
     PipelineOptions o;
+    o.remesh.clustering = test::metric_i_one_thread();
     o.remesh.vertices = n;
     o.remesh.seed = 5;
     o.subdivide = 0;
@@ -171,7 +172,7 @@ TEST_F(RemeshAttributes, StripVerticesAndSubdivisionCarryAttributes) {
   o.subdivide = 1;
   const PipelineResult r = remesh_path(path, o);
   ASSERT_EQ(r.subdivision_levels, 1);
-  ASSERT_GT(r.remesh.boundary_vertices_added, 0u);
+  ASSERT_GT(r.remesh.dual.boundary_vertices_added, 0u);
   const MeshBuffers& m = r.remesh.mesh;
   const ColourError all = colour_error(m.positions, r.attributes, r.remesh.vertex_attributes);
   EXPECT_LT(all.mean, 0.01);
@@ -202,10 +203,10 @@ TEST_F(RemeshAttributes, SameValuesForAnyThreadCountAndStorage) {
   mapped.validate_all();
   ASSERT_EQ(mapped.ram_bytes(), 0u);
   PipelineOptions o = options();
-  o.remesh.clustering.deterministic = true;
-  o.remesh.clustering.threads = 1;
+  o.remesh.clustering.loops.deterministic = true;
+  o.remesh.clustering.loops.threads = 1;
   const PipelineResult one = remesh_store(ram, o);
-  o.remesh.clustering.threads = 2;
+  o.remesh.clustering.loops.threads = 2;
   const PipelineResult two = remesh_store(ram, o);
   o.memory_limit = 1;  // nothing sized by the input in RAM
   o.work_directory = dir_->string();

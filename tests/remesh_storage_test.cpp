@@ -21,9 +21,9 @@ RemeshOptions options_for(Metric metric, uint32_t threads, bool deterministic) {
   o.vertices = 1500;
   o.seed = 11;
   o.clustering.metric = metric;
-  o.clustering.threads = threads;
-  o.clustering.deterministic = deterministic;
-  o.clustering.region_vertices = 256;  // many regions: visits cross chunk frontiers
+  o.clustering.loops.threads = threads;
+  o.clustering.loops.deterministic = deterministic;
+  o.clustering.loops.region_vertices = 256;  // many regions: visits cross chunk frontiers
   return o;
 }
 
@@ -34,7 +34,6 @@ struct Output {
 };
 
 Output run_with(const MeshView& view, RemeshOptions o, ArrayStorage& storage) {
-  o.clustering.storage = &storage;
   const RemeshResult r = remesh(view, o, storage);
   return {r.mesh.positions, r.mesh.triangles, test::to_vector(r.cluster_of_vertex)};
 }
@@ -75,7 +74,6 @@ TEST(RemeshStorage, LabelsAreReturnedOnlyWhenAsked) {
   const MeshStore store = MeshStore::build(elephant.view());
   RemeshOptions o = options_for(Metric::I, 1, false);
   WorkSpace files("", 0);
-  o.clustering.storage = &files;
   const RemeshResult kept = remesh(store.view(), o, files);
   EXPECT_EQ(kept.cluster_of_vertex.size(), store.view().vertex_count());
   EXPECT_EQ(&kept.cluster_of_vertex.storage(), &ram_storage());  // outlives the work space

@@ -12,6 +12,7 @@
 #include "streamcvd/streaming/remesh_pipeline.h"
 #include "streamcvd/streaming/run_reports.h"
 #include "streamcvd/streaming/store/store_build.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
@@ -22,6 +23,7 @@ TEST(RemeshStream, ArraysGiveTheOutputOfTheSameMeshReadFromAFile) {
   const std::string path = (std::filesystem::path(::testing::TempDir()) / "remesh_stream_torus.ply").string();
   write_mesh(path, torus.view());
   PipelineOptions options;
+  options.remesh.clustering = test::metric_i_one_thread();
   options.remesh.vertices = 300;
   const PipelineResult from_file = remesh_path(path, options);
   for (uint32_t block : {1u << 16, 97u}) {

@@ -58,7 +58,9 @@ int check_rounds(const MeshBuffers& soup, uint32_t K) {
     }
     std::vector<int32_t> labels = start;
     ClusteringReport report;
-    DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, {}, report, ram_storage());
+    DefectRepairOptions relaxed;
+    relaxed.clustering = test::metric_i_one_thread();
+    DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, relaxed, report, ram_storage());
     EXPECT_EQ(r.defect_vertices, global_defects(view, labels, K, loops));
     if (r.defect_vertices == 0) {
       EXPECT_TRUE(clusters_connected(view, labels, K));
@@ -133,8 +135,10 @@ TEST(RepairLoop, JoinsAGroupRingedByOneCluster) {
   BoundaryLoops loops = find_boundary_loops(g.view);
   std::vector<uint8_t> adjustable(RingedGroup::K, 1);
   ClusteringReport report;
+  DefectRepairOptions options;
+  options.clustering = test::metric_i_one_thread();
   DefectRepairResult r =
-      repair_dual_defects(g.view, items, g.labels, RingedGroup::K, adjustable, loops, {}, report, ram_storage());
+      repair_dual_defects(g.view, items, g.labels, RingedGroup::K, adjustable, loops, options, report, ram_storage());
   EXPECT_GT(r.rounds, 0u);
   EXPECT_EQ(r.unjoined_pairs, 0u);
   EXPECT_TRUE(g.unjoined().empty());
@@ -151,12 +155,14 @@ TEST(RepairLoop, CleanClusteringNeedsNoRound) {
   ItemData items = compute_item_data(view);
   const uint32_t K = 200;
   std::vector<int32_t> labels = rough_clustering(view, items, K, 7);
-  minimize_clustering(view, items, labels, K);
+  DefectRepairOptions options;
+  options.clustering = test::metric_i_one_thread();
+  minimize_clustering(view, items, labels, K, options.clustering);
   BoundaryLoops loops = find_boundary_loops(view);
   std::vector<uint8_t> adjustable(K, 1);
   std::vector<int32_t> before = labels;
   ClusteringReport report;
-  DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, {}, report, ram_storage());
+  DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, options, report, ram_storage());
   ASSERT_EQ(global_defects(view, before, K, loops), 0u);
   EXPECT_EQ(r.rounds, 0u);
   EXPECT_EQ(r.defect_vertices, 0u);
@@ -172,14 +178,15 @@ TEST(RepairDragon, SeedsConvergeWithinTheRoundBudget) {
   MeshStore store = MeshStore::build(read_mesh(*path).view());
   for (uint64_t seed : {1, 5}) {
     RemeshOptions o;
+    o.clustering = test::metric_i_one_thread();
     o.vertices = 20000;
     o.seed = seed;
     const RemeshResult r = remesh(store.view(), o);
-    EXPECT_GT(r.repair_rounds_used, 0u) << "seed " << seed << ": the dragon always has defects to repair";
-    EXPECT_LE(r.repair_rounds_used, o.repair_rounds) << "seed " << seed;
-    EXPECT_EQ(r.defect_faces_removed, 0u) << "seed " << seed;
-    EXPECT_EQ(r.defect_vertices, 0u) << "seed " << seed;
-    EXPECT_TRUE(r.components.ok()) << "seed " << seed << ": " << r.components.problems.front();
+    EXPECT_GT(r.repair.rounds, 0u) << "seed " << seed << ": the dragon always has defects to repair";
+    EXPECT_LE(r.repair.rounds, o.repair_rounds) << "seed " << seed;
+    EXPECT_EQ(r.placement.defects_removed.faces_removed, 0u) << "seed " << seed;
+    EXPECT_EQ(r.placement.defect_vertices, 0u) << "seed " << seed;
+    EXPECT_TRUE(r.checks.components.ok()) << "seed " << seed << ": " << r.checks.components.problems.front();
     EXPECT_EQ(r.mesh.vertex_count(), 20000u) << "seed " << seed << ": exactly N, strip vertices included";
   }
 }

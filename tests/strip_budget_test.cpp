@@ -27,25 +27,26 @@ TEST(StripBudget, ElephantWithHolesGetsExactlyNWhenTheInteriorKeepsHalf) {
   for (uint32_t n : {1000u, 500u}) {
     SCOPED_TRACE(n);
     PipelineOptions o;
+    o.remesh.clustering = test::metric_i_one_thread();
     o.remesh.vertices = n;
     const PipelineResult r = remesh_store(store, o);
     const RemeshResult& m = r.remesh;
     std::printf("[ budget   ] elephant with holes -> N=%u: %u vertices, %llu strip vertices, %llu loops kept, %llu closed\n", n,
-                m.mesh.vertex_count(), (unsigned long long)m.boundary_vertices_added,
-                (unsigned long long)r.output_topology.boundary_loops, (unsigned long long)m.holes_closed);
-    EXPECT_TRUE(m.components.ok()) << m.components.problems.front();
+                m.mesh.vertex_count(), (unsigned long long)m.dual.boundary_vertices_added,
+                (unsigned long long)r.output_topology.boundary_loops, (unsigned long long)m.dual.holes_closed);
+    EXPECT_TRUE(m.checks.components.ok()) << m.checks.components.problems.front();
     EXPECT_EQ(r.output_topology.nonmanifold_edges + r.output_topology.nonmanifold_vertices, 0u);
-    EXPECT_EQ(m.defect_faces_removed, 0u);
-    EXPECT_EQ(r.output_topology.boundary_loops + m.holes_closed, in.boundary_loops);
+    EXPECT_EQ(m.placement.defects_removed.faces_removed, 0u);
+    EXPECT_EQ(r.output_topology.boundary_loops + m.dual.holes_closed, in.boundary_loops);
     if (n == 1000) {
       EXPECT_EQ(m.mesh.vertex_count(), n) << m.budget.note;
-      EXPECT_EQ(m.vertex_shortfall, 0);
+      EXPECT_EQ(m.dual.vertex_shortfall, 0);
       EXPECT_TRUE(m.budget.note.empty()) << m.budget.note;
-      EXPECT_LT(2 * m.boundary_vertices_added, n);
+      EXPECT_LT(2 * m.dual.boundary_vertices_added, n);
     } else {
       EXPECT_GT(m.mesh.vertex_count(), n);
       EXPECT_NE(m.budget.note.find("boundary strips need"), std::string::npos) << m.budget.note;
-      EXPECT_GE(2 * m.boundary_vertices_added, n);
+      EXPECT_GE(2 * m.dual.boundary_vertices_added, n);
     }
   }
 }

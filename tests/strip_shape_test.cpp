@@ -17,6 +17,7 @@
 #include "streamcvd/core/remesh.h"
 #include "streamcvd/core/measure/shapes.h"
 #include "streamcvd/streaming/store/store.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
@@ -130,20 +131,21 @@ TEST(StripShape, JaggedHolesGetWellShapedStripsOnTheInputBoundary) {
     RemeshOptions o;
     o.vertices = 2000;
     o.clustering.metric = metric;
+    o.clustering.loops.threads = 1;
     const RemeshResult r = remesh(store.view(), o);
     const TopologyStats t = compute_topology_stats(r.mesh.view());
     std::printf("[ strips   ] sphere with 24 holes -> N=2000 %s: %llu strip faces, Qav %.3f (others %.3f), Qmin %.3f, "
                 "%llu loops kept, %llu strip moves\n",
-                metric == Metric::I ? "I " : "IQ", (unsigned long long)r.strip_faces, r.strip_q_avg, r.other_q_avg,
-                r.strip_q_min, (unsigned long long)t.boundary_loops, (unsigned long long)r.strip_moves);
+                metric == Metric::I ? "I " : "IQ", (unsigned long long)r.checks.strips.strip_faces, r.checks.strips.strip_q_avg, r.checks.strips.other_q_avg,
+                r.checks.strips.strip_q_min, (unsigned long long)t.boundary_loops, (unsigned long long)r.quality.strip_moves());
     EXPECT_EQ(r.mesh.vertex_count(), 2000u);
     EXPECT_EQ(t.nonmanifold_edges + t.nonmanifold_vertices + t.degenerate_faces + t.duplicate_faces, 0u);
-    EXPECT_EQ(t.boundary_loops + r.holes_closed, in.boundary_loops);
-    ASSERT_GT(r.strip_faces, 100u);
+    EXPECT_EQ(t.boundary_loops + r.dual.holes_closed, in.boundary_loops);
+    ASSERT_GT(r.checks.strips.strip_faces, 100u);
     // Without the strip spacing and shaping (before #13 item 6): Qav 0.768, Qmin 0.209 at both
     // metrics; with them 0.827 and 0.369.
-    EXPECT_GT(r.strip_q_avg, 0.8);
-    EXPECT_GT(r.strip_q_min, 0.3);
+    EXPECT_GT(r.checks.strips.strip_q_avg, 0.8);
+    EXPECT_GT(r.checks.strips.strip_q_min, 0.3);
     // The output boundary (strip vertices only) lies on the input boundary polyline.
     const double tolerance = 1e-5;  // float rounding on the unit sphere
     for (const auto& e : boundary_edges(r.mesh))
@@ -161,15 +163,16 @@ TEST(StripShape, HolesNarrowerThanTwoOutputEdgesCloseAtLowResolutionOnly) {
   uint64_t closed_at[2] = {0, 0};
   for (int i = 0; i < 2; ++i) {
     RemeshOptions o;
+    o.clustering = test::metric_i_one_thread();
     o.vertices = i == 0 ? 300 : 3000;
     SCOPED_TRACE(o.vertices);
     const RemeshResult r = remesh(store.view(), o);
     const TopologyStats t = compute_topology_stats(r.mesh.view());
     EXPECT_EQ(r.mesh.vertex_count(), o.vertices);
     EXPECT_EQ(t.nonmanifold_edges + t.nonmanifold_vertices + t.degenerate_faces + t.duplicate_faces, 0u);
-    EXPECT_EQ(t.boundary_loops + r.holes_closed, in.boundary_loops);
-    EXPECT_TRUE(r.components.ok());
-    closed_at[i] = r.holes_closed;
+    EXPECT_EQ(t.boundary_loops + r.dual.holes_closed, in.boundary_loops);
+    EXPECT_TRUE(r.checks.components.ok());
+    closed_at[i] = r.dual.holes_closed;
   }
   EXPECT_EQ(closed_at[0], in.boundary_loops);
   EXPECT_LT(closed_at[1], closed_at[0]);
@@ -180,11 +183,12 @@ TEST(StripShape, SameOutputForAnyThreadCount) {
   MeshStore store = MeshStore::build(input.view());
   RemeshOptions o;
   o.vertices = 1500;
-  o.clustering.deterministic = true;
+  o.clustering.metric = Metric::I;
+  o.clustering.loops.deterministic = true;
   std::vector<float> first;
   for (uint32_t threads : {1u, 2u, 4u}) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
-    o.clustering.threads = threads;
+    o.clustering.loops.threads = threads;
     const RemeshResult r = remesh(store.view(), o);
     if (first.empty()) first = r.mesh.positions;
     else EXPECT_EQ(r.mesh.positions, first) << threads << " threads";

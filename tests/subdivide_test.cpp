@@ -18,6 +18,7 @@
 #include "streamcvd/streaming/remesh_pipeline.h"
 #include "streamcvd/streaming/store/store.h"
 #include "streamcvd/streaming/store/subdivision_stream.h"
+#include "tests/test_util.h"
 
 namespace streamcvd {
 namespace {
@@ -155,13 +156,14 @@ TEST(Subdivide, PipelineReachesNAboveHalfTheInputVertices) {
   MeshBuffers sphere = make_icosphere(3);
   MeshStore store = MeshStore::build(sphere.view());
   PipelineOptions o;
+  o.remesh.clustering = test::metric_i_one_thread();
   o.remesh.vertices = 600;
   PipelineResult r = remesh_store(store, o);
   EXPECT_GE(r.subdivision_levels, 1);
   EXPECT_GE(r.remeshed_vertices, 6000u);
   EXPECT_EQ(r.remesh.clusters, 600u);
   EXPECT_EQ(r.remesh.mesh.vertex_count(), 600u);
-  EXPECT_EQ(r.remesh.defect_vertices, 0u);
+  EXPECT_EQ(r.remesh.placement.defect_vertices, 0u);
   EXPECT_TRUE(r.output_topology.closed_manifold);
   EXPECT_TRUE(r.output_topology.consistently_oriented);
   EXPECT_EQ(r.output_topology.genus, 0);

@@ -19,6 +19,13 @@ std::optional<std::string> shared_data_path(const std::string& name) {
   return std::nullopt;
 }
 
+void append_shifted(MeshBuffers& soup, const MeshBuffers& piece, float dx, float dy, float dz) {
+  const uint32_t offset = soup.vertex_count();
+  for (size_t i = 0; i < piece.positions.size(); i += 3)
+    soup.positions.insert(soup.positions.end(), {piece.positions[i] + dx, piece.positions[i + 1] + dy, piece.positions[i + 2] + dz});
+  for (uint32_t i : piece.triangles) soup.triangles.push_back(i + offset);
+}
+
 std::filesystem::path temp_dir(const std::string& tag) {
   static std::atomic<int> counter{0};
   auto p = std::filesystem::temp_directory_path() /

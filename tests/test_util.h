@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "streamcvd/core/clustering/clustering.h"
 #include "streamcvd/core/mesh/large_array.h"
 
 #include "streamcvd/core/measure/shapes.h"
@@ -27,6 +28,16 @@ std::vector<T> to_vector(const LargeArray<T>& a) {
 /// Pieces of every cluster by a plain BFS over same-label edges (labels −1 skipped): the
 /// reference the chunked connectivity code is checked against. O(V + E).
 std::vector<uint32_t> pieces_per_cluster(const MeshView& mesh, std::span<const int32_t> labels, uint32_t K);
+/// Metric I with the clustering on one thread: what most suites were calibrated on (the
+/// library's defaults are the CLI's, IQ on all cores), reproducible from run to run.
+inline ClusteringOptions metric_i_one_thread() {
+  ClusteringOptions o;
+  o.metric = Metric::I;
+  o.loops.threads = 1;
+  return o;
+}
+/// Appends `piece` to `soup`, moved by (dx, dy, dz): a soup of several components.
+void append_shifted(MeshBuffers& soup, const MeshBuffers& piece, float dx, float dy, float dz = 0);
 /// A fresh empty directory under the system temp dir, unique per call.
 std::filesystem::path temp_dir(const std::string& tag);
 

@@ -63,8 +63,8 @@ struct BenchCase {
   RenderOptions render;
   unsigned timeout_seconds = 3600;
   bool qem_prevent_flips = true;  // openmesh-qem: add ModNormalFlippingT
-  uint32_t lloyd_max_iterations = ClusteringOptions{}.lloyd_max_iterations;
-  double lloyd_time_limit = 0;
+  uint32_t lloyd_max_iterations = LloydOptions{}.max_iterations;
+  double lloyd_time_limit = LloydOptions{}.time_limit_seconds;
 };
 
 // Characters safe in file names; anything else becomes '_'.
@@ -174,8 +174,11 @@ json run_row(const BenchCase& c, const std::string& algorithm, uint32_t target, 
     options.remesh.seed = c.seed;
     parse_metric(c.metric, options.remesh.clustering.metric);  // validated by parse_suite
     if (algorithm == "lloyd") options.remesh.clustering.algorithm = ClusteringOptions::Algorithm::Lloyd;
-    options.remesh.clustering.lloyd_max_iterations = c.lloyd_max_iterations;
-    options.remesh.clustering.lloyd_time_limit = c.lloyd_time_limit;
+    options.remesh.clustering.lloyd.max_iterations = c.lloyd_max_iterations;
+    options.remesh.clustering.lloyd.time_limit_seconds = c.lloyd_time_limit;
+    // The clustering on one thread, as the bench has always timed it (TBB is limited to
+    // c.threads for the rest of the job).
+    options.remesh.clustering.loops.threads = 1;
     const IoCounters io0 = read_io_counters();
     PipelineResult p = remesh_path(c.mesh_path, options);
     const double total = now_seconds() - t0;

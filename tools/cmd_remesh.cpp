@@ -24,16 +24,23 @@ void print_cleaning(std::FILE* out, const StoreBuildReport& build, const char* i
 
 namespace {
 
+// The library's defaults (RemeshOptions{}): the command line's, option by option.
+const RemeshOptions kDefaults;
+
 struct RemeshArgs {
-  std::string input, output, report, subdivide = "auto", small_components = "keep", metric = "IQ", algorithm = "cvd";
+  std::string input, output, report, subdivide = "auto";
+  std::string small_components = small_components_name(kDefaults.small_components);
+  std::string metric = metric_name(kDefaults.clustering.metric);
+  std::string algorithm = algorithm_name(kDefaults.clustering.algorithm);
   std::string attributes = "all";
-  int curvature_rings = 3;
-  double gradation = 0, qem_threshold = ClusteringOptions{}.qem_threshold;
-  uint32_t vertices = 10000;
-  uint32_t threads = 0;
-  uint64_t seed = RemeshOptions{}.seed;
-  bool no_strips = false, no_project = false, no_optimize = false, ascii = false, quiet = false, deterministic = false;
-  bool keep_work = false;
+  int curvature_rings = kDefaults.curvature_rings;
+  double gradation = kDefaults.gradation, qem_threshold = kDefaults.clustering.qem_threshold;
+  uint32_t vertices = kDefaults.vertices;
+  uint32_t threads = kDefaults.clustering.loops.threads;
+  uint64_t seed = kDefaults.seed;
+  bool no_strips = !kDefaults.boundary_strips, no_project = !kDefaults.project_to_surface;
+  bool no_optimize = !kDefaults.optimize_quality, deterministic = kDefaults.clustering.loops.deterministic;
+  bool ascii = false, quiet = false, keep_work = false;
   JobOptions job;
 };
 
@@ -128,24 +135,25 @@ void add_remesh_command(CLI::App& app) {
                 "Keep the store built from a file input in the work folder (named <input>.store), for reruns");
   cmd->callback([args] {
     PipelineOptions options;
-    options.remesh.vertices = args->vertices;
-    options.remesh.seed = args->seed;
-    if (!parse_metric(args->metric, options.remesh.clustering.metric))
+    RemeshOptions& remesh = options.remesh;
+    remesh.vertices = args->vertices;
+    remesh.seed = args->seed;
+    if (!parse_metric(args->metric, remesh.clustering.metric))
       throw InputError("--metric: expected I, IQ, A or AQ, got '" + args->metric + "'");
-    if (args->algorithm == "lloyd") {
-      if (is_anisotropic(options.remesh.clustering.metric))
-        throw InputError("--algorithm lloyd: only the metrics I and IQ are implemented, got " + args->metric);
-      options.remesh.clustering.algorithm = ClusteringOptions::Algorithm::Lloyd;
-    }
-    options.remesh.gradation = args->gradation;
-    options.remesh.curvature_rings = args->curvature_rings;
-    options.remesh.clustering.qem_threshold = args->qem_threshold;
-    options.remesh.clustering.threads = args->threads;  // 0: all cores (within the limit below)
-    options.remesh.clustering.deterministic = args->deterministic;
-    options.remesh.boundary_strips = !args->no_strips;
-    options.remesh.project_to_surface = !args->no_project;
-    options.remesh.optimize_quality = !args->no_optimize;
-    options.remesh.small_components = args->small_components == "drop" ? SmallComponents::Drop : SmallComponents::Keep;
+    if (!parse_algorithm(args->algorithm, remesh.clustering.algorithm))
+      throw InputError("--algorithm: expected cvd or lloyd, got '" + args->algorithm + "'");
+    if (remesh.clustering.algorithm == ClusteringOptions::Algorithm::Lloyd && is_anisotropic(remesh.clustering.metric))
+      throw InputError("--algorithm lloyd: only the metrics I and IQ are implemented, got " + args->metric);
+    remesh.gradation = args->gradation;
+    remesh.curvature_rings = args->curvature_rings;
+    remesh.clustering.qem_threshold = args->qem_threshold;
+    remesh.clustering.loops.threads = args->threads;  // 0: all cores (within the limit below)
+    remesh.clustering.loops.deterministic = args->deterministic;
+    remesh.boundary_strips = !args->no_strips;
+    remesh.project_to_surface = !args->no_project;
+    remesh.optimize_quality = !args->no_optimize;
+    if (!parse_small_components(args->small_components, remesh.small_components))
+      throw InputError("--small-components: expected keep or drop, got '" + args->small_components + "'");
     if (args->subdivide == "auto") options.subdivide = -1;
     else if (args->subdivide == "none") options.subdivide = 0;
     else {
@@ -208,11 +216,11 @@ void add_remesh_command(CLI::App& app) {
       if (r.input_build.cleaning.rebuilt) print_cleaning(stderr, r.input_build, "  ");
       std::fprintf(stderr, "  output %llu vertices (%llu clusters + %llu on boundary strips), %llu faces, Qav %.3f, angles<30 %.2f%%\n",
                    (unsigned long long)r.output_topology.vertices,
-                   (unsigned long long)(r.output_topology.vertices - rm.boundary_vertices_added),
-                   (unsigned long long)rm.boundary_vertices_added, (unsigned long long)r.output_topology.faces,
+                   (unsigned long long)(r.output_topology.vertices - rm.dual.boundary_vertices_added),
+                   (unsigned long long)rm.dual.boundary_vertices_added, (unsigned long long)r.output_topology.faces,
                    r.output_quality.q_avg, r.output_quality.percent_angles_below_30);
       std::fprintf(stderr, "  loops  %u + %u, repair rounds %u; time %.2f s (load %.2f, clustering %.2f); peak %.0f MB\n",
-                   cr.unconstrained_loops, cr.constrained_loops, rm.repair_rounds_used, total, r.load_seconds,
+                   cr.unconstrained_loops, cr.constrained_loops, rm.repair.rounds, total, r.load_seconds,
                    rm.seconds.clustering, double(peak_rss_bytes()) / 1e6);
       std::fprintf(stderr, "  checks %s\n", all_ok ? "all passed" : "FAILED (below)");
     }

@@ -1,8 +1,9 @@
 #include "streamcvd/core/clustering/cluster_energy.h"
 
 #include <cctype>
-#include <string>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 #include "streamcvd/core/fields/metric_field.h"
 
@@ -71,15 +72,17 @@ ClusterState make_cluster_state(const ItemData& items, std::span<const int32_t> 
   s.metric = metric;
   s.qem_threshold = qem_threshold;
   s.iso.assign(cluster_count, ClusterSums{});
-  const bool aniso = is_anisotropic(metric) && !items.tensor.empty();
-  const bool quadrics = uses_quadrics(metric) && !items.quadric.empty();
-  if (is_anisotropic(metric) && !aniso) s.metric = uses_quadrics(metric) ? Metric::IQ : Metric::I;
+  const bool aniso = is_anisotropic(metric), quadrics = uses_quadrics(metric);
+  if (aniso && items.tensor.size() != 6 * items.weight.size())
+    throw std::invalid_argument(std::string("make_cluster_state: metric ") + metric_name(metric) +
+                                " needs a tensor per item (attach_tensors)");
+  if (quadrics && items.quadric.size() != 10 * items.weight.size())
+    throw std::invalid_argument(std::string("make_cluster_state: metric ") + metric_name(metric) +
+                                " needs a quadric per item (vertex_quadrics)");
   if (aniso) s.aniso.assign(cluster_count, AnisoSums{});
   if (quadrics) {
     s.quadric.assign(cluster_count, QuadricSums{});
     s.offset.assign(3 * size_t(cluster_count), 0.0);
-  } else if (uses_quadrics(s.metric)) {
-    s.metric = is_anisotropic(s.metric) ? Metric::A : Metric::I;
   }
   for (size_t v = 0; v < labels.size(); ++v) {
     const int32_t l = labels[v];
@@ -134,11 +137,10 @@ void update_site_offset(ClusterState& s, size_t c) {
   }
 }
 
-void update_site_offsets(ClusterState& s, std::span<const uint8_t> changed) {
+void update_site_offsets(ClusterState& s) {
   if (s.quadric.empty()) return;
   s.use_offsets = true;
-  for (size_t c = 0; c < s.iso.size(); ++c)
-    if (changed.empty() || changed[c]) update_site_offset(s, c);
+  for (size_t c = 0; c < s.iso.size(); ++c) update_site_offset(s, c);
 }
 
 double state_energy(const ItemData& items, const ClusterState& s) {

@@ -65,15 +65,17 @@ struct ClusterState {
   uint32_t cluster_count() const { return uint32_t(iso.size()); }
 };
 
-/// Builds the accumulators of `metric` from the labels (fixed order: deterministic). Items must
-/// carry tensors for A/AQ and quadrics for IQ/AQ. Offsets start at zero (use_offsets false).
-/// O(V + K). Not thread-safe on the same state.
+/// Builds the accumulators of `metric` from the labels (fixed order: deterministic). Offsets
+/// start at zero (use_offsets false). Throws std::invalid_argument when the items lack what the
+/// metric needs: a tensor per item for A/AQ (attach_tensors), a quadric per item for IQ/AQ; the
+/// state's metric is always `metric`. O(V + K). Not thread-safe on the same state.
 ClusterState make_cluster_state(const ItemData& items, std::span<const int32_t> labels, uint32_t cluster_count,
                                 Metric metric, double qem_threshold = 1e-2);
 
-/// Recomputes d_i = qem_point(Q_i around c_i) − c_i for the clusters with changed[c] ≠ 0 (all
-/// when `changed` is empty) and sets use_offsets. O(K) 3×3 eigen-solves; thread-safe per cluster.
-void update_site_offsets(ClusterState& state, std::span<const uint8_t> changed = {});
+/// Recomputes d_i = qem_point(Q_i around c_i) − c_i for every cluster and sets use_offsets (Q
+/// metrics; nothing for I and A). O(K) 3×3 eigen-solves on this thread; solved_cluster_state
+/// (core/clustering/clustering.h) spreads them over threads.
+void update_site_offsets(ClusterState& state);
 
 /// The offset d_c of one cluster (state must carry quadrics; use_offsets is the caller's).
 /// O(1); thread-safe for distinct clusters (the parallel loop updates clusters concurrently).

@@ -1,15 +1,29 @@
 // Algorithm 1 of the paper (boundary-edge FIFO minimisation), the cleaning step and the
-// connectivity-constrained pass (§VI-A, §VI-B).
+// connectivity-constrained pass (§VI-A, §VI-B). The loops themselves are in
+// parallel_clustering.cpp (one code path for any thread count).
 #include "streamcvd/core/clustering/clustering.h"
 
-#include <algorithm>
-#include <cassert>
-#include <chrono>
-#include <cmath>
+#include <cctype>
+#include <string>
 
 #include "streamcvd/core/clustering/parallel_clustering.h"
 
 namespace streamcvd {
+
+const char* algorithm_name(ClusteringOptions::Algorithm algorithm) {
+  return algorithm == ClusteringOptions::Algorithm::Lloyd ? "lloyd" : "cvd";
+}
+
+bool parse_algorithm(std::string_view text, ClusteringOptions::Algorithm& out) {
+  std::string lower;
+  for (char ch : text) lower.push_back(char(std::tolower(static_cast<unsigned char>(ch))));
+  for (auto a : {ClusteringOptions::Algorithm::Cvd, ClusteringOptions::Algorithm::Lloyd})
+    if (lower == algorithm_name(a)) {
+      out = a;
+      return true;
+    }
+  return false;
+}
 
 std::vector<ClusterSums> accumulate_clusters(const ItemData& items, std::span<const int32_t> labels,
                                              uint32_t cluster_count) {
@@ -22,55 +36,26 @@ double clustering_energy(const ItemData& items, std::span<const ClusterSums> sum
   return state_energy(items, s);
 }
 
-uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels, ClusterState& state,
-                              const LoopOptions& options, ClusteringReport& report,
-                              std::span<const uint8_t> initially_active) {
-  // One code path: a single thread runs the same region visits, one region after the other.
-  return run_parallel_clustering_loops(mesh, items, labels, state, options, report, initially_active);
-}
-
-LoopOptions loop_options(const ClusteringOptions& options) {
-  LoopOptions loop;
-  loop.stop_fraction = options.near_convergence;
-  loop.max_loops = options.max_loops;
-  loop.skip_unchanged = options.skip_unchanged;
-  loop.offset_update_loops = options.offset_update_loops;
-  loop.on_loop = options.on_loop;
-  loop.threads = options.threads;
-  loop.deterministic = options.deterministic;
-  loop.region_vertices = options.region_vertices;
-  loop.storage = options.storage;
-  return loop;
-}
-
 ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                                      uint32_t cluster_count, const ClusteringOptions& options) {
   ClusteringReport report;
-  LoopOptions loop = loop_options(options);
-  // First convergence with centroid sites (I or A); the Q metrics then embed the QEM sites
-  // (§V-C) and converge again before the cleaning.
-  const Metric base = is_anisotropic(options.metric) ? Metric::A : Metric::I;
-  // The parallel path also spreads the site solves and the cleaning over the threads (same
-  // results as the serial calls).
-  const bool parallel = options.threads != 1 || options.deterministic;
-  auto solve_sites = [&](ClusterState& s) {
-    if (parallel) parallel_update_site_offsets(s, options.threads);
-    else update_site_offsets(s);
-  };
-  ClusterState state = make_cluster_state(items, labels, cluster_count, base);
-  report.unconstrained_loops = run_clustering_loops(mesh, items, labels, state, loop, report);
+  LoopOptions pass = options.loops;
+  pass.constrained = false;
+  // First convergence with centroid sites (I or A: nothing to solve); the Q metrics then embed
+  // the QEM sites (§V-C) and converge again before the cleaning.
+  const Metric centroids = is_anisotropic(options.metric) ? Metric::A : Metric::I;
+  ClusterState state = make_cluster_state(items, labels, cluster_count, centroids);
+  report.unconstrained_loops = run_clustering_loops(mesh, items, labels, state, pass, report);
   if (uses_quadrics(options.metric)) {
-    state = make_cluster_state(items, labels, cluster_count, options.metric, options.qem_threshold);
-    solve_sites(state);
-    report.unconstrained_loops += run_clustering_loops(mesh, items, labels, state, loop, report);
+    state = solved_cluster_state(items, labels, cluster_count, options);
+    report.unconstrained_loops += run_clustering_loops(mesh, items, labels, state, pass, report);
   }
-  clean_clusters(mesh, items, labels, cluster_count, report, options.storage ? *options.storage : ram_storage());
+  clean_clusters(mesh, items, labels, cluster_count, report, pass.storage ? *pass.storage : ram_storage());
   // Incremental sums drift: rebuild them before the constrained pass (DESIGN.md §3).
-  state = make_cluster_state(items, labels, cluster_count, options.metric, options.qem_threshold);
-  solve_sites(state);
-  loop.constrained = true;
-  loop.stop_fraction = 0.0;
-  report.constrained_loops = run_clustering_loops(mesh, items, labels, state, loop, report);
+  state = solved_cluster_state(items, labels, cluster_count, options);
+  pass.constrained = true;
+  pass.stop_fraction = 0.0;
+  report.constrained_loops = run_clustering_loops(mesh, items, labels, state, pass, report);
   report.metric = state.metric;
   report.final_energy = state_energy(items, state);
   return report;

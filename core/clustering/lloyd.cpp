@@ -30,13 +30,6 @@ struct LaterPush {
   }
 };
 
-// Cluster accumulators for `labels` with the sites of the metric (QEM points for IQ).
-ClusterState sited_state(const ItemData& items, std::span<const int32_t> labels, uint32_t K, const LloydOptions& o) {
-  ClusterState state = make_cluster_state(items, labels, K, o.metric, o.qem_threshold);
-  update_site_offsets(state);  // no-op without quadrics
-  return state;
-}
-
 // Sites relative to ItemData::origin, 3 per cluster (the frame of the item centroids).
 std::vector<double> relative_sites(const ItemData& items, const ClusterState& state) {
   std::vector<double> z = cluster_sites(items, state);
@@ -96,31 +89,22 @@ void assign(const MeshView& mesh, const ItemData& items, std::span<const int32_t
 
 }  // namespace
 
-LloydOptions lloyd_options(const ClusteringOptions& options) {
-  LloydOptions o;
-  o.metric = options.metric;
-  o.qem_threshold = options.qem_threshold;
-  o.max_iterations = options.lloyd_max_iterations;
-  o.time_limit_seconds = options.lloyd_time_limit;
-  if (options.on_loop) o.on_iteration = [f = options.on_loop](uint32_t i, uint64_t moves) { f(false, i, moves); };
-  return o;
-}
-
 ClusteringReport lloyd_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                                  uint32_t cluster_count, const LloydOptions& options) {
+                                  uint32_t cluster_count, const ClusteringOptions& options) {
   if (is_anisotropic(options.metric))
     throw std::invalid_argument("lloyd_clustering: only the metrics I and IQ are implemented");
   const auto t0 = std::chrono::steady_clock::now();
   ClusteringReport report;
-  ClusterState state = sited_state(items, labels, cluster_count, options);
+  const LloydOptions& lloyd = options.lloyd;
+  ClusterState state = solved_cluster_state(items, labels, cluster_count, options);
   report.metric = state.metric;
   double best_energy = state_energy(items, state);
   std::vector<int32_t> best, next;
   std::vector<double> offered;
-  if (options.keep_best) best.assign(labels.begin(), labels.end());
+  if (lloyd.keep_best) best.assign(labels.begin(), labels.end());
   std::vector<Push> heap;
   bool last_is_best = true;
-  for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
+  for (uint32_t iteration = 1; iteration <= lloyd.max_iterations; ++iteration) {
     const std::vector<double> z = relative_sites(items, state);
     assign(mesh, items, labels, z, cluster_count, next, offered, heap);
     uint64_t moves = 0;
@@ -128,27 +112,27 @@ ClusteringReport lloyd_clustering(const MeshView& mesh, const ItemData& items, s
       moves += next[v] != labels[v];
       labels[v] = next[v];
     }
-    state = sited_state(items, labels, cluster_count, options);
+    state = solved_cluster_state(items, labels, cluster_count, options);
     const double energy = state_energy(items, state);
     report.moves_per_loop.push_back(moves);
     report.energy_per_loop.push_back(energy);
     const double elapsed = seconds_since(t0);
     report.seconds_per_loop.push_back(elapsed);
     report.unconstrained_loops = iteration;
-    last_is_best = !options.keep_best || energy <= best_energy;
-    if (options.keep_best && energy < best_energy) {
+    last_is_best = !lloyd.keep_best || energy <= best_energy;
+    if (lloyd.keep_best && energy < best_energy) {
       best_energy = energy;
       best.assign(labels.begin(), labels.end());
     }
-    if (options.on_iteration) options.on_iteration(iteration, moves);
+    if (options.loops.on_loop) options.loops.on_loop(false, iteration, moves);
     if (moves == 0) break;
-    if (options.time_limit_seconds > 0 && elapsed >= options.time_limit_seconds) break;
+    if (lloyd.time_limit_seconds > 0 && elapsed >= lloyd.time_limit_seconds) break;
   }
   if (!last_is_best) std::copy(best.begin(), best.end(), labels.begin());
   // The flood keeps clusters connected; the cleaning only acts on inputs with a cluster spread
   // over several components (then it restores the dual mesh's precondition).
   if (!clusters_connected(mesh, labels, cluster_count)) clean_clusters(mesh, items, labels, cluster_count, report);
-  report.final_energy = state_energy(items, sited_state(items, labels, cluster_count, options));
+  report.final_energy = state_energy(items, solved_cluster_state(items, labels, cluster_count, options));
   return report;
 }
 

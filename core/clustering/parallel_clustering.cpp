@@ -39,6 +39,7 @@
 #include <thread>
 
 #include "streamcvd/core/clustering/connectivity_check.h"
+#include "streamcvd/core/clustering/loop_regions.h"
 #include "streamcvd/core/mesh/parallel_blocks.h"
 #include "streamcvd/core/mesh/timer.h"
 
@@ -46,14 +47,19 @@ namespace streamcvd {
 
 namespace {
 
+using detail::Census;
 using detail::for_each_block;
 using detail::for_each_region;
+using detail::make_census;
+using detail::make_partition;
+using detail::Partition;
+using detail::region_bounds;
+using detail::shifted_bounds;
 using detail::tls_threads;
 
 constexpr int32_t kShared = -1;  // owner of a cluster that no single region holds alone
 constexpr int32_t kUnseen = -2;
 constexpr uint32_t kNone = UINT32_MAX;
-constexpr uint32_t kMaxRegions = 65535;
 constexpr size_t kSerialBelow = 2048;  // candidate vertices below which a sweep runs on one thread
 
 // Labels are read outside the locks by other threads: every access is atomic (relaxed; the
@@ -74,94 +80,6 @@ struct alignas(64) ClusterLock {
   }
   void unlock() { held.store(0, std::memory_order_release); }
 };
-
-
-// Contiguous vertex ranges (Hilbert order: spatially compact) and, per vertex, whether all its
-// neighbours lie in its own range.
-struct Partition {
-  std::vector<uint32_t> begin;  // regions + 1 boundaries, from 0 to V
-  LargeArray<uint8_t> interior;
-  LargeArray<uint16_t> region;  // region of each vertex (at most kMaxRegions regions)
-  uint32_t size() const { return uint32_t(begin.size() - 1); }
-};
-
-// Per-cluster census under one partition, kept exact through every move, so that a cluster's
-// owner is found in O(1) per loop instead of a scan of all vertices: c lies in region r alone
-// iff Σ region = n·r and Σ region² = n·r² (n = its vertex count; equality in Cauchy-Schwarz).
-// With region < 2^16 and n < 2^32 the sums are exact in 64 bits.
-struct Census {
-  std::vector<uint32_t> boundary;   // vertices of the cluster that are not region-interior
-  std::vector<uint64_t> sum, sum2;  // Σ region, Σ region²
-  void move(const Partition& p, uint32_t u, int32_t from, int32_t to) {
-    const uint64_t r = p.region[u];
-    const uint32_t b = !p.interior[u];
-    boundary[from] -= b;
-    boundary[to] += b;
-    sum[from] -= r;
-    sum[to] += r;
-    sum2[from] -= r * r;
-    sum2[to] += r * r;
-  }
-};
-
-// Region boundaries: each store chunk split into pieces of about `length` vertices (a region
-// never straddles two chunks, so a region's data is paged in with one chunk).
-std::vector<uint32_t> region_bounds(const MeshView& mesh, uint32_t length) {
-  const uint32_t V = mesh.vertex_count();
-  length = std::max(length, V / (kMaxRegions / 2) + 1);  // chunk rounding adds at most one per chunk
-  std::vector<std::pair<uint32_t, uint32_t>> ranges;
-  for (const Chunk& c : mesh.chunks) {
-    if (c.vertex_begin != (ranges.empty() ? 0 : ranges.back().second) || c.vertex_end < c.vertex_begin) {
-      ranges.clear();
-      break;
-    }
-    if (c.vertex_end > c.vertex_begin) ranges.emplace_back(c.vertex_begin, c.vertex_end);
-  }
-  if (ranges.empty() || ranges.back().second != V) ranges.assign(1, {0, V});
-  std::vector<uint32_t> b = {0};
-  for (auto [first, last] : ranges) {
-    const uint64_t n = std::max<uint64_t>(1, (uint64_t(last - first) + length / 2) / std::max(1u, length));
-    for (uint64_t i = 1; i <= n; ++i) {
-      const uint32_t cut = uint32_t(first + uint64_t(last - first) * i / n);
-      if (cut > b.back()) b.push_back(cut);
-    }
-  }
-  if (b.back() != V) b.push_back(V);
-  if (b.size() - 1 > kMaxRegions && ranges.size() > 1) {  // too many chunks: ignore them
-    const uint32_t n = std::min<uint32_t>(kMaxRegions, std::max<uint32_t>(1, V / std::max(1u, length)));
-    b.assign(1, 0);
-    for (uint32_t i = 1; i <= n; ++i) b.push_back(uint32_t(uint64_t(V) * i / n));
-  }
-  return b;
-}
-
-// The boundaries shifted by half a region: clusters cut by one partition are inside the other.
-std::vector<uint32_t> shifted_bounds(const std::vector<uint32_t>& b) {
-  std::vector<uint32_t> s = {0};
-  for (size_t i = 0; i + 1 < b.size(); ++i) {
-    const uint32_t mid = b[i] + (b[i + 1] - b[i]) / 2;
-    if (mid > s.back()) s.push_back(mid);
-  }
-  if (s.back() != b.back()) s.push_back(b.back());
-  return s;
-}
-
-Partition make_partition(const MeshView& mesh, std::vector<uint32_t> bounds, ArrayStorage& storage) {
-  Partition p;
-  p.begin = std::move(bounds);
-  p.interior = LargeArray<uint8_t>(mesh.vertex_count(), storage, "region interior marks");
-  p.region = LargeArray<uint16_t>(mesh.vertex_count(), storage, "vertex regions");
-  for_each_region(p.size(), [&](uint32_t r) {
-    const uint32_t first = p.begin[r], last = p.begin[r + 1];
-    for (uint32_t v = first; v < last; ++v) {
-      p.region[v] = uint16_t(r);
-      // Neighbour lists are sorted (MeshView): the first and last bound them all.
-      const auto nb = mesh.neighbours(v);
-      p.interior[v] = nb.empty() || (nb.front() >= first && nb.back() < last);
-    }
-  });
-  return p;
-}
 
 // The work of one region in one phase.
 struct RegionWork {
@@ -457,23 +375,7 @@ uint32_t ParallelLoop<kAniso, kOffsets>::run(ClusteringReport& report, std::span
   std::vector<Partition>& partitions = partitions_;
   partitions.push_back(make_partition(mesh_, region_bounds(mesh_, length), storage_));
   if (options_.deterministic) partitions.push_back(make_partition(mesh_, shifted_bounds(partitions[0].begin), storage_));
-  for (const Partition& p : partitions) {
-    Census c;
-    c.boundary.assign(K_, 0);
-    c.sum.assign(K_, 0);
-    c.sum2.assign(K_, 0);
-    // Serial on purpose: three plain adds per vertex (~1 ms per million vertices) cost less
-    // than the atomic adds a parallel accumulation would need.
-    for (uint32_t v = 0; v < V; ++v) {
-      const int32_t l = labels_[v];
-      if (l < 0) continue;
-      const uint64_t r = p.region[v];
-      c.boundary[l] += !p.interior[v];
-      c.sum[l] += r;
-      c.sum2[l] += r * r;
-    }
-    census_.push_back(std::move(c));
-  }
+  for (const Partition& p : partitions) census_.push_back(make_census(p, std::span<const int32_t>(labels_, V), K_));
 
   for (uint32_t c = 0; c < K_; ++c)
     changed_in_[c].store(initially_active.empty() || initially_active[c] ? 1 : 0, std::memory_order_relaxed);
@@ -551,9 +453,9 @@ uint32_t run_loops(const MeshView& mesh, const ItemData& items, std::span<int32_
 
 }  // namespace
 
-uint32_t run_parallel_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                                       ClusterState& state, const LoopOptions& options, ClusteringReport& report,
-                                       std::span<const uint8_t> initially_active) {
+uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
+                              ClusterState& state, const LoopOptions& options, ClusteringReport& report,
+                              std::span<const uint8_t> initially_active) {
   const uint32_t threads = clustering_thread_count(options.threads);
   tbb::task_arena arena(int(std::min<uint32_t>(threads, 4096)));
   uint32_t loops = 0;

@@ -22,20 +22,14 @@
 
 namespace streamcvd {
 
-/// Threads a `threads` option resolves to: 0 = TBB's current max_allowed_parallelism (all cores
-/// unless a tbb::global_control limits it), otherwise `threads`.
+/// Threads a `threads` option (LoopOptions::threads) resolves to: 0 = TBB's current
+/// max_allowed_parallelism (all cores unless a tbb::global_control limits it), otherwise
+/// `threads`. O(1), thread-safe.
 uint32_t clustering_thread_count(uint32_t threads);
 
-/// The parallel counterpart of run_clustering_loops (same arguments and contract), with
-/// options.threads worker threads (0 = all) and options.deterministic. Thread-safe against
-/// nothing else touching `labels` or `state`; runs its own tbb::task_arena.
-/// O((V + E) / T) per loop plus a serial pass over postponed edges.
-uint32_t run_parallel_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                                       ClusterState& state, const LoopOptions& options, ClusteringReport& report,
-                                       std::span<const uint8_t> initially_active = {});
-
-/// update_site_offsets(state) for every cluster, clusters spread over `threads` threads (0 =
-/// all). Bit-identical to the serial call. O(K / T).
-void parallel_update_site_offsets(ClusterState& state, uint32_t threads);
+// run_clustering_loops (core/clustering/clustering.h) is defined in parallel_clustering.cpp:
+// options.threads worker threads in a tbb::task_arena of its own; thread-safe against nothing
+// else touching the labels or the state. O((V + E) / T) per loop plus a serial pass over the
+// postponed edges. solved_cluster_state spreads the site solves the same way (cluster_sites.cpp).
 
 }  // namespace streamcvd

@@ -1,17 +1,9 @@
-// Component budget and initial sampling (paper §VI-G), range by range (DESIGN.md §4).
-//
-// Everything sized by V is either the caller's (labels, component ids: LargeArrays from its
-// storage) or one range's scratch per thread; what crosses ranges is K-sized (components, the
-// (range, component) *parts*, clusters) or frontier-sized (the absorption's candidate lists).
-// A range only ever writes its own vertices, and reads other ranges' labels only in a step where
-// nobody writes: the output is the same for any thread count.
-//   budget:   chunk-wise union-find → component ids per range → per-part sums → components.
-//   sampling: per-part sums → each component's clusters shared over its parts (largest
-//             remainder) → per range: exponential-race order, regions grown inside the range,
-//             steals → absorption of the free vertices (inside ranges, then across frontiers).
-#include <tbb/blocked_range.h>
+// The initial sampling (paper §VI-G), range by range (DESIGN.md §4): per-part sums → each
+// component's clusters shared over its parts (largest remainder) → per range: exponential-race
+// order, regions grown inside the range, steals → absorption of the free vertices
+// (free_vertices.cpp). A range only ever writes its own vertices: the labels are the same for
+// any thread count.
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -20,120 +12,17 @@
 #include <numeric>
 #include <random>
 #include <stdexcept>
-#include <unordered_map>
 
-#include "streamcvd/core/mesh/chunked_components.h"
-#include "streamcvd/core/clustering/clustering.h"
+#include "streamcvd/core/clustering/sampling.h"
+#include "streamcvd/core/clustering/sampling_parts.h"
 
 namespace streamcvd {
 
+using sampling::for_each_range;
+using sampling::kNone;
+using sampling::Part;
+
 namespace {
-
-constexpr uint32_t kVerbatimVertices = 16;
-constexpr double kSmallComponentShare = 0.2;
-constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
-
-// fn(i) for every range index, as TBB tasks of one range each, each a visit of its range.
-template <class Fn>
-void for_each_range(const MeshView& mesh, std::span<const VertexRange> ranges, const Fn& fn) {
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      const RangeVisit visit(mesh, "sampling", ranges[i], kReadsNeighbours | kReadsVertexFaces | kReadsFlags);
-      fn(i);
-    }
-  });
-}
-
-// The vertices of one component inside one range: the unit the sampling shares clusters over.
-struct Part {
-  uint32_t component = kNone;
-  uint32_t vertices = 0;
-  double weight = 0;       // Σ item weights, summed in vertex order (deterministic)
-  uint8_t boundary = 0;    // some vertex is on a boundary edge
-  uint32_t clusters = 0;   // sampling: clusters this part grows
-};
-
-// Per-range sums by component. `component_of(v)` gives v's component or kNoComponent. The parts
-// come out sorted by component. `index` is the caller's per-thread scratch.
-template <class ComponentOf>
-void collect_parts(VertexRange r, const ComponentOf& component_of, std::span<const double> weight,
-                   std::span<const uint8_t> flags, std::unordered_map<uint32_t, uint32_t>& index,
-                   std::vector<Part>& out) {
-  out.clear();
-  index.clear();
-  uint32_t last_component = kNoComponent, last_part = 0;
-  for (uint32_t v = r.begin; v < r.end; ++v) {
-    const uint32_t c = component_of(v);
-    if (c == kNoComponent) continue;
-    if (c != last_component) {  // Hilbert order: runs of one component, few map look-ups
-      auto [it, inserted] = index.try_emplace(c, uint32_t(out.size()));
-      if (inserted) out.push_back(Part{c});
-      last_component = c;
-      last_part = it->second;
-    }
-    Part& p = out[last_part];
-    p.weight += weight[v];
-    ++p.vertices;
-    p.boundary |= uint8_t((flags[v] & kVertexBoundary) != 0);
-  }
-  std::sort(out.begin(), out.end(), [](const Part& a, const Part& b) { return a.component < b.component; });
-}
-
-// Largest-remainder split of `budget` over `weights`, each share clamped to [lo_i, hi_i].
-std::vector<uint32_t> proportional_split(const std::vector<double>& weights, uint64_t budget,
-                                         const std::vector<uint32_t>& lo, const std::vector<uint32_t>& hi) {
-  const size_t n = weights.size();
-  std::vector<uint32_t> share(n, 0);
-  std::vector<uint8_t> fixed(n, 0);
-  // Iterate: components whose proportional share falls outside [lo, hi] are fixed at the bound,
-  // the rest re-share what remains. Terminates in at most n rounds.
-  for (size_t round = 0; round <= n; ++round) {
-    double free_weight = 0;
-    uint64_t free_budget = budget;
-    for (size_t i = 0; i < n; ++i) {
-      if (fixed[i]) free_budget -= std::min<uint64_t>(free_budget, share[i]);
-      else free_weight += weights[i];
-    }
-    bool changed = false;
-    for (size_t i = 0; i < n; ++i) {
-      if (fixed[i]) continue;
-      double ideal = free_weight > 0 ? double(free_budget) * weights[i] / free_weight : 0.0;
-      if (ideal < lo[i]) { share[i] = lo[i]; fixed[i] = 1; changed = true; }
-      else if (ideal > hi[i]) { share[i] = hi[i]; fixed[i] = 1; changed = true; }
-    }
-    if (changed) continue;
-    std::vector<std::pair<double, size_t>> remainders;
-    uint64_t given = 0;
-    for (size_t i = 0; i < n; ++i) {
-      if (fixed[i]) continue;
-      double ideal = free_weight > 0 ? double(free_budget) * weights[i] / free_weight : 0.0;
-      share[i] = uint32_t(std::floor(ideal));
-      given += share[i];
-      remainders.push_back({ideal - std::floor(ideal), i});
-    }
-    std::stable_sort(remainders.begin(), remainders.end(),
-                     [](const auto& x, const auto& y) { return x.first > y.first; });
-    for (size_t k = 0; given < free_budget && k < remainders.size(); ++k) {
-      size_t i = remainders[k].second;
-      if (share[i] < hi[i]) { ++share[i]; ++given; }
-    }
-    break;
-  }
-  return share;
-}
-
-// The mesh graph for chunked_components: every vertex on a face, joined to its neighbours (each
-// in-range edge once).
-RangeFill mesh_graph_fill(const MeshView& mesh) {
-  return [&mesh](size_t, VertexRange r, RangePieceBuilder& b) {
-    for (uint32_t v = r.begin; v < r.end; ++v) {
-      if (mesh.faces_of(v).empty()) continue;
-      b.add(v);
-      for (uint32_t n : mesh.neighbours(v))
-        if (n > v || !r.contains(n)) b.join(v, n);
-    }
-  };
-}
 
 // Range i draws from mt19937_64(seed + i·step): independent streams (the engine's seeding
 // scrambles its seed), and a mesh of one range draws what the global sampling drew.
@@ -306,133 +195,8 @@ void sample_range(const MeshView& mesh, std::span<const double> weight, std::spa
   }
 }
 
+
 }  // namespace
-
-std::vector<VertexRange> sampling_ranges(const MeshView& mesh) {
-  const uint32_t V = mesh.vertex_count();
-  if (mesh.chunks.empty()) return {VertexRange{0, V}};
-  // One range per chunk for a small mesh (ranges of a few hundred vertices would only cut its
-  // regions), up to 16 ranges from 1M vertices on so that every thread has work.
-  const uint32_t min_ranges = std::clamp<uint32_t>(V / 65536, 1, 16);
-  return chunk_ranges(mesh.chunks, 1u << 20, min_ranges);
-}
-
-ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& items, uint32_t clusters,
-                                      SmallComponents small_components, ArrayStorage& storage) {
-  ComponentBudget b;
-  const uint32_t V = mesh.vertex_count();
-  const std::vector<VertexRange> ranges = sampling_ranges(mesh);
-  // One union-find pass: each range's piece ids go straight into component_of_vertex, and the
-  // merge's table turns them into component ids in the pass that sums the parts.
-  const RangeFill fill = mesh_graph_fill(mesh);
-  b.component_of_vertex = LargeArray<uint32_t>(V, storage, "component of vertex");
-  std::vector<RangePieces> pieces(ranges.size());
-  {
-    tbb::enumerable_thread_specific<RangePieceBuilder> builders;
-    for_each_range(mesh, ranges, [&](size_t i) {
-      const VertexRange r = ranges[i];
-      RangePieceBuilder& builder = builders.local();
-      builder.begin(r);
-      fill(i, r, builder);
-      pieces[i] = builder.finish(b.component_of_vertex.span().subspan(r.begin, r.size()));
-    });
-  }
-  const ComponentTable table = merge_range_pieces(ranges, pieces);
-  pieces = {};
-  const uint32_t C = uint32_t(table.components);
-  std::vector<std::vector<Part>> parts(ranges.size());
-  struct Scratch {
-    std::unordered_map<uint32_t, uint32_t> index;
-    std::vector<Part> parts;
-  };
-  tbb::enumerable_thread_specific<Scratch> scratch;
-  for_each_range(mesh, ranges, [&](size_t i) {
-    const VertexRange r = ranges[i];
-    for (uint32_t v = r.begin; v < r.end; ++v) {
-      uint32_t& c = b.component_of_vertex[v];
-      if (c != kNoComponent) c = table.component(i, c);
-    }
-    Scratch& s = scratch.local();
-    collect_parts(r, [&](uint32_t v) { return b.component_of_vertex[v]; }, items.weight, mesh.vertex_flags, s.index,
-                  s.parts);
-    parts[i] = s.parts;
-  });
-  // Component sums: the parts in range order (the same for any thread count).
-  std::vector<double> weight(C, 0.0);
-  b.vertices_per_component.assign(C, 0);
-  b.component_closed.assign(C, 1);
-  for (const std::vector<Part>& range_parts : parts)
-    for (const Part& p : range_parts) {
-      weight[p.component] += p.weight;
-      b.vertices_per_component[p.component] += p.vertices;
-      if (p.boundary) b.component_closed[p.component] = 0;
-    }
-  parts = {};
-  double total = std::accumulate(weight.begin(), weight.end(), 0.0);
-  std::vector<uint32_t> lo(C), hi(C);
-  std::vector<uint8_t> small(C, 0);
-  for (uint32_t c = 0; c < C; ++c) {
-    uint32_t minimum = std::min<uint32_t>(b.component_closed[c] ? 4 : 3, b.vertices_per_component[c]);
-    double ideal = total > 0 ? double(clusters) * weight[c] / total : 0.0;
-    small[c] = ideal < minimum;
-    hi[c] = b.vertices_per_component[c];
-    lo[c] = small[c] ? (small_components == SmallComponents::Keep ? minimum : 0) : minimum;
-    if (small[c] && small_components == SmallComponents::Drop) hi[c] = 0;
-    // A kept component of a few vertices is copied as it is (one cluster per vertex): the dual
-    // of 3-4 clusters on a handful of triangles is too often empty or degenerate.
-    if (small[c] && small_components == SmallComponents::Keep && b.vertices_per_component[c] <= kVerbatimVertices)
-      lo[c] = hi[c] = b.vertices_per_component[c];
-  }
-  // Kept small components may take at most a fifth of the budget (a scan with hundreds of
-  // floating specks at a small N must still give the main surface its share): the heaviest are
-  // kept within that cap, the others dropped and counted.
-  if (small_components == SmallComponents::Keep) {
-    std::vector<uint32_t> smalls;
-    uint64_t needed = 0;
-    for (uint32_t c = 0; c < C; ++c)
-      if (small[c]) {
-        smalls.push_back(c);
-        needed += lo[c];
-      }
-    const uint64_t cap = uint64_t(double(clusters) * kSmallComponentShare);
-    if (needed > cap) {
-      std::stable_sort(smalls.begin(), smalls.end(), [&](uint32_t x, uint32_t y) { return weight[x] > weight[y]; });
-      uint64_t used = 0;
-      uint32_t dropped = 0;
-      for (uint32_t c : smalls) {
-        if (used + lo[c] <= cap) {
-          used += lo[c];
-        } else {
-          lo[c] = hi[c] = 0;
-          ++dropped;
-        }
-      }
-      b.note = std::to_string(dropped) + " of " + std::to_string(smalls.size()) +
-               " small components dropped: keeping them all would take more than a fifth of N";
-    }
-  }
-  // Small components take their minimum first; the large ones share what is left.
-  b.clusters_per_component = proportional_split(weight, clusters, lo, hi);
-  for (uint32_t c = 0; c < C; ++c) {
-    b.total_clusters += b.clusters_per_component[c];
-    if (small[c]) {
-      if (b.clusters_per_component[c] == 0) ++b.components_dropped;
-      else ++b.small_components_kept;
-    }
-  }
-  if (b.total_clusters != clusters && b.note.empty()) {
-    uint64_t clusterable = 0;
-    for (uint32_t c = 0; c < C; ++c) clusterable += b.vertices_per_component[c];
-    if (b.total_clusters > clusters)
-      b.note = "the " + std::to_string(b.small_components_kept) + " small components kept need " +
-               std::to_string(b.total_clusters) + " clusters, more than the " + std::to_string(clusters) + " asked";
-    else if (clusterable < clusters)
-      b.note = "the input has only " + std::to_string(clusterable) + " vertices on faces";
-    else
-      b.note = "components could not take the whole budget";
-  }
-  return b;
-}
 
 LargeArray<int32_t> initial_sampling(const MeshView& mesh, const ItemData& items, const ComponentBudget& budget,
                                      uint64_t seed, ArrayStorage& storage) {
@@ -449,7 +213,7 @@ LargeArray<int32_t> initial_sampling(const MeshView& mesh, const ItemData& items
   tbb::enumerable_thread_specific<SamplingScratch> scratch;
   for_each_range(mesh, ranges, [&](size_t i) {
     SamplingScratch& s = scratch.local();
-    collect_parts(ranges[i], [&](uint32_t v) { return component_of[v]; }, weight, mesh.vertex_flags, s.index, s.parts);
+    sampling::collect_parts(ranges[i], [&](uint32_t v) { return component_of[v]; }, weight, mesh.vertex_flags, s.index, s.parts);
     parts[i] = s.parts;
     for (const Part& p : parts[i])
       if (p.component >= C) throw std::invalid_argument("initial_sampling: a component id beyond the budget");
@@ -488,7 +252,7 @@ LargeArray<int32_t> initial_sampling(const MeshView& mesh, const ItemData& items
       part_weight[j] = cp[j]->weight;
       hi[j] = cp[j]->vertices;
     }
-    std::vector<uint32_t> share = proportional_split(part_weight, k, lo, hi);
+    std::vector<uint32_t> share = sampling::proportional_split(part_weight, k, lo, hi);
     // Weightless parts get at most one each from the remainders: the rest, in range order.
     uint64_t given = std::accumulate(share.begin(), share.end(), uint64_t(0));
     for (size_t j = 0; given < k && j < cp.size(); ++j) {
@@ -516,118 +280,5 @@ LargeArray<int32_t> initial_sampling(const MeshView& mesh, const ItemData& items
   return label;
 }
 
-void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels) {
-  const std::vector<VertexRange> ranges = sampling_ranges(mesh);
-  const size_t R = ranges.size();
-  struct Offer {
-    uint32_t vertex;
-    int32_t label;
-  };
-  struct Scratch {
-    std::vector<uint32_t> assigned, next;  // one BFS layer, the next
-    std::vector<Offer> layer;              // labels of a layer, before they are applied
-  };
-  tbb::enumerable_thread_specific<Scratch> scratch;
-  // Free vertices of each range that might take a label across the frontier (sorted, unique).
-  std::vector<std::vector<uint32_t>> candidates(R);
-  // Neighbours in other ranges of what a range labelled in a round (unsorted).
-  std::vector<std::vector<uint32_t>> outbox(R);
-  std::vector<std::vector<Offer>> offers(R);
-  // Layered BFS inside range r from s.layer (ascending): the layer's labels are applied, then
-  // the free neighbours in r of the vertices just labelled (ascending) take the label of their
-  // lowest-id labelled neighbour in r, and so on; on_labelled(v) sees every vertex labelled.
-  // A layer's labels come from earlier layers only, so the result does not depend on the order
-  // inside a layer. Reads and writes only labels of r.
-  auto spread = [&](VertexRange r, Scratch& s, const auto& on_labelled) {
-    while (!s.layer.empty()) {
-      s.assigned.clear();
-      for (const Offer& o : s.layer) {
-        labels[o.vertex] = o.label;
-        s.assigned.push_back(o.vertex);
-        on_labelled(o.vertex);
-      }
-      s.next.clear();
-      for (uint32_t u : s.assigned)
-        for (uint32_t n : mesh.neighbours(u))
-          if (r.contains(n) && labels[n] < 0) s.next.push_back(n);
-      std::sort(s.next.begin(), s.next.end());
-      s.next.erase(std::unique(s.next.begin(), s.next.end()), s.next.end());
-      s.layer.clear();
-      for (uint32_t v : s.next)
-        for (uint32_t n : mesh.neighbours(v))
-          if (r.contains(n) && labels[n] >= 0) {
-            s.layer.push_back({v, labels[n]});
-            break;
-          }
-    }
-  };
-
-  // Inside every range: the free vertices next to a labelled one of the range are the first
-  // layer; those left free by the BFS that touch another range are the first round's candidates.
-  for_each_range(mesh, ranges, [&](size_t i) {
-    const VertexRange r = ranges[i];
-    Scratch& s = scratch.local();
-    s.layer.clear();
-    candidates[i].clear();
-    for (uint32_t v = r.begin; v < r.end; ++v) {
-      if (labels[v] >= 0) continue;
-      bool across = false, found = false;
-      for (uint32_t n : mesh.neighbours(v)) {
-        if (!r.contains(n)) across = true;
-        else if (!found && labels[n] >= 0) {
-          s.layer.push_back({v, labels[n]});
-          found = true;
-        }
-      }
-      if (across && !found) candidates[i].push_back(v);
-    }
-    spread(r, s, [](uint32_t) {});
-    std::erase_if(candidates[i], [&](uint32_t v) { return labels[v] >= 0; });
-  });
-
-  auto range_of = [&](uint32_t v) {
-    auto it = std::upper_bound(ranges.begin(), ranges.end(), v, [](uint32_t x, const VertexRange& r) { return x < r.begin; });
-    return size_t(it - ranges.begin()) - 1;
-  };
-  for (;;) {
-    // Across the frontiers, reading only (nobody writes in this step): a candidate takes the
-    // label of its lowest-id labelled neighbour in another range.
-    for_each_range(mesh, ranges, [&](size_t i) {
-      const VertexRange r = ranges[i];
-      offers[i].clear();
-      for (uint32_t v : candidates[i]) {
-        if (labels[v] >= 0) continue;
-        for (uint32_t n : mesh.neighbours(v))
-          if (!r.contains(n) && labels[n] >= 0) {
-            offers[i].push_back({v, labels[n]});
-            break;
-          }
-      }
-    });
-    bool any = false;
-    for (const std::vector<Offer>& o : offers) any |= !o.empty();
-    if (!any) break;
-    // Each range takes its offers and spreads them inside; the neighbours in other ranges of
-    // what it labelled are the next round's candidates.
-    for_each_range(mesh, ranges, [&](size_t i) {
-      const VertexRange r = ranges[i];
-      Scratch& s = scratch.local();
-      outbox[i].clear();
-      s.layer.assign(offers[i].begin(), offers[i].end());
-      spread(r, s, [&](uint32_t u) {
-        for (uint32_t n : mesh.neighbours(u))
-          if (!r.contains(n)) outbox[i].push_back(n);
-      });
-    });
-    for (std::vector<uint32_t>& c : candidates) c.clear();
-    for (const std::vector<uint32_t>& out : outbox)
-      for (uint32_t n : out) candidates[range_of(n)].push_back(n);
-    for_each_range(mesh, ranges, [&](size_t i) {
-      std::vector<uint32_t>& c = candidates[i];
-      std::sort(c.begin(), c.end());
-      c.erase(std::unique(c.begin(), c.end()), c.end());
-    });
-  }
-}
 
 }  // namespace streamcvd

@@ -1,4 +1,4 @@
-// Internal to the parallel clustering (core/clustering/parallel_clustering.cpp, parallel_clean.cpp): the
+// Internal to the parallel clustering (core/clustering/parallel_clustering.cpp, cluster_sites.cpp): the
 // fork-join over blocks of indices that every parallel step uses, with a ThreadSanitizer variant.
 #pragma once
 

@@ -65,30 +65,27 @@ PipelineOptions pipeline_options(const RemeshArgs& a) {
   check_range<int64_t>("n", n, 4, 2'000'000'000);
   o.remesh.vertices = uint32_t(n);
   o.remesh.seed = a.seed;
-  if (!parse_metric(a.metric, o.remesh.clustering.metric))
+  ClusteringOptions& clustering = o.remesh.clustering;
+  if (!parse_metric(a.metric, clustering.metric))
     throw py::value_error("metric: expected 'I', 'IQ', 'A' or 'AQ', got '" + a.metric + "'");
-  if (a.algorithm == "lloyd") {
-    if (is_anisotropic(o.remesh.clustering.metric))
-      throw py::value_error("algorithm='lloyd': only the metrics I and IQ are implemented, got " + a.metric);
-    o.remesh.clustering.algorithm = ClusteringOptions::Algorithm::Lloyd;
-  } else if (a.algorithm != "cvd") {
+  if (!parse_algorithm(a.algorithm, clustering.algorithm))
     throw py::value_error("algorithm: expected 'cvd' or 'lloyd', got '" + a.algorithm + "'");
-  }
+  if (clustering.algorithm == ClusteringOptions::Algorithm::Lloyd && is_anisotropic(clustering.metric))
+    throw py::value_error("algorithm='lloyd': only the metrics I and IQ are implemented, got " + a.metric);
   check_range("gradation", a.gradation, -8.0, 8.0);
   check_range("curvature_rings", a.curvature_rings, 1, 10);
   check_range("qem_threshold", a.qem_threshold, 0.0, 1.0);
   check_range("threads", a.threads, 0, 4096);
   o.remesh.gradation = a.gradation;
   o.remesh.curvature_rings = a.curvature_rings;
-  o.remesh.clustering.qem_threshold = a.qem_threshold;
-  o.remesh.clustering.threads = uint32_t(a.threads);
-  o.remesh.clustering.deterministic = a.deterministic;
+  clustering.qem_threshold = a.qem_threshold;
+  clustering.loops.threads = uint32_t(a.threads);
+  clustering.loops.deterministic = a.deterministic;
   o.remesh.boundary_strips = a.boundary_strips;
   o.remesh.project_to_surface = a.project;
   o.remesh.optimize_quality = a.optimize;
-  if (a.small_components != "keep" && a.small_components != "drop")
+  if (!parse_small_components(a.small_components, o.remesh.small_components))
     throw py::value_error("small_components: expected 'keep' or 'drop', got '" + a.small_components + "'");
-  o.remesh.small_components = a.small_components == "drop" ? SmallComponents::Drop : SmallComponents::Keep;
   if (py::isinstance<py::str>(a.subdivide) && a.subdivide.cast<std::string>() == "auto") {
     o.subdivide = -1;
   } else if (py::isinstance<py::str>(a.subdivide) && a.subdivide.cast<std::string>() == "none") {

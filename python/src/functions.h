@@ -34,23 +34,26 @@ struct Result : Mesh {
   py::object report;
 };
 
-/// The options every remesh call takes (keyword arguments, defaults as the CLI's).
+/// The library's defaults (RemeshOptions{}), which are the CLI's too.
+inline const RemeshOptions kRemeshDefaults;
+
+/// The options every remesh call takes (keyword arguments, defaults from kRemeshDefaults).
 struct RemeshArgs {
   py::object n;
-  std::string metric = "IQ";
-  double gradation = 0;
-  uint64_t seed = RemeshOptions{}.seed;
-  int threads = 0;
-  bool deterministic = false;
-  std::string small_components = "keep";
-  bool boundary_strips = true;
+  std::string metric = metric_name(kRemeshDefaults.clustering.metric);
+  double gradation = kRemeshDefaults.gradation;
+  uint64_t seed = kRemeshDefaults.seed;
+  int threads = int(kRemeshDefaults.clustering.loops.threads);
+  bool deterministic = kRemeshDefaults.clustering.loops.deterministic;
+  std::string small_components = small_components_name(kRemeshDefaults.small_components);
+  bool boundary_strips = kRemeshDefaults.boundary_strips;
   py::object memory = py::none();      ///< None, bytes, or "512M"
   py::object attributes = py::none();  ///< remesh(): {name: array}; remesh_file(): "all", "none" or names
-  std::string algorithm = "cvd";
-  int curvature_rings = 3;
-  double qem_threshold = ClusteringOptions{}.qem_threshold;
+  std::string algorithm = algorithm_name(kRemeshDefaults.clustering.algorithm);
+  int curvature_rings = kRemeshDefaults.curvature_rings;
+  double qem_threshold = kRemeshDefaults.clustering.qem_threshold;
   py::object subdivide = py::str("auto");
-  bool project = true, optimize = true;
+  bool project = kRemeshDefaults.project_to_surface, optimize = kRemeshDefaults.optimize_quality;
   py::object work_dir = py::none();
   py::object progress = py::none();  ///< None or a callable taking one dict per progress report
 };

@@ -12,7 +12,7 @@ int main() {
   const streamcvd::MeshStore store = streamcvd::MeshStore::build(torus.view());
   streamcvd::PipelineOptions options;
   options.remesh.vertices = 500;
-  options.remesh.clustering.threads = 1;
+  options.remesh.clustering.loops.threads = 1;
   const streamcvd::PipelineResult r = streamcvd::remesh_store(store, options);
   std::printf("consumer: %u vertices, %llu faces\n", r.remesh.mesh.vertex_count(),
               static_cast<unsigned long long>(r.remesh.mesh.face_count()));

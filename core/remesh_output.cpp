@@ -1,0 +1,198 @@
+// The stages of remesh() from the repaired clustering to the output (core/remesh_stages.h): the
+// dual, the placement of its vertices, the quality pass, the checks, the carried attributes.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "streamcvd/core/dual/placement.h"
+#include "streamcvd/core/measure/mesh_stats.h"
+#include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/remesh_stages.h"
+
+namespace streamcvd::stages {
+
+namespace {
+
+// Each cluster's output vertex at its site z (3 doubles per cluster, stored as float).
+void place_output_vertices(DualMesh& dual, std::span<const double> z) {
+  for (uint32_t v = 0; v < dual.mesh.vertex_count(); ++v) {
+    const int32_t c = dual.cluster_of_output_vertex[v];
+    if (c >= 0)
+      for (int k = 0; k < 3; ++k) dual.mesh.positions[3 * size_t(v) + k] = float(z[3 * size_t(c) + k]);
+  }
+}
+
+// Quality Q = 6/√3 · area / (half-perimeter · longest edge) of an output triangle.
+double triangle_quality(const float* a, const float* b, const float* c) {
+  double e[3][3], len[3];
+  for (int k = 0; k < 3; ++k) {
+    e[0][k] = double(b[k]) - a[k];
+    e[1][k] = double(c[k]) - b[k];
+    e[2][k] = double(a[k]) - c[k];
+  }
+  for (int i = 0; i < 3; ++i) len[i] = std::sqrt(e[i][0] * e[i][0] + e[i][1] * e[i][1] + e[i][2] * e[i][2]);
+  const double cx = e[0][1] * e[1][2] - e[0][2] * e[1][1], cy = e[0][2] * e[1][0] - e[0][0] * e[1][2],
+               cz = e[0][0] * e[1][1] - e[0][1] * e[1][0];
+  const double area = 0.5 * std::sqrt(cx * cx + cy * cy + cz * cz);
+  const double denom = 0.5 * (len[0] + len[1] + len[2]) * std::max({len[0], len[1], len[2]});
+  return denom > 0 ? 6.0 / std::sqrt(3.0) * area / denom : 0.0;
+}
+
+// QEM sites of three clusters along one straight crease are collinear, and two clusters may
+// share a corner: their triangle is a needle or has no area at all. Such a triangle is worse
+// than the small approximation gain, so its clusters fall back to their projected centroids.
+// Returns the number of sites reverted.
+uint64_t revert_needle_sites(DualMesh& dual, std::vector<double>& z, std::span<const double> fallback) {
+  constexpr double kNeedleQuality = 1e-4;
+  constexpr int kMaxPasses = 9;
+  uint64_t reverted = 0;
+  std::vector<uint8_t> done(z.size() / 3, 0);
+  auto moved2 = [&](int32_t c) {
+    double d2 = 0;
+    for (int i = 0; i < 3; ++i) d2 += (z[3 * size_t(c) + i] - fallback[3 * size_t(c) + i]) * (z[3 * size_t(c) + i] - fallback[3 * size_t(c) + i]);
+    return d2;
+  };
+  for (int pass = 0; pass < kMaxPasses; ++pass) {
+    bool changed = false;
+    const auto& tri = dual.mesh.triangles;
+    const float* P = dual.mesh.positions.data();
+    for (size_t f = 0; f < tri.size(); f += 3) {
+      if (triangle_quality(P + 3 * size_t(tri[f]), P + 3 * size_t(tri[f + 1]), P + 3 * size_t(tri[f + 2])) >= kNeedleQuality)
+        continue;
+      // Revert one site per needle and pass: the one that moved least from its fallback (a crease
+      // point before a corner), so a corner is kept whenever a crease neighbour can give way.
+      int32_t pick = -1;
+      double least = std::numeric_limits<double>::infinity();
+      for (int k = 0; k < 3; ++k) {
+        const int32_t c = dual.cluster_of_output_vertex[tri[f + k]];
+        if (c < 0 || done[c]) continue;
+        const double d2 = moved2(c);
+        if (d2 < least) {
+          least = d2;
+          pick = c;
+        }
+      }
+      if (pick < 0) continue;
+      done[pick] = 1;
+      changed = true;
+      ++reverted;
+      for (int i = 0; i < 3; ++i) z[3 * size_t(pick) + i] = fallback[3 * size_t(pick) + i];
+    }
+    if (!changed) break;
+    place_output_vertices(dual, z);
+  }
+  return reverted;
+}
+
+}  // namespace
+
+DualStage build_dual(Job& job, const ItemData& items, Clusters& c, const BoundaryLoops& loops) {
+  job.begin("dual");
+  DualStage d;
+  d.state = solved_cluster_state(items, c.labels, c.K, job.clustering);
+  d.report.final_energy = state_energy(items, d.state);
+  d.sites = cluster_sites(items, d.state);
+  d.dual = build_dual_mesh(job.mesh(), c.labels, c.K, d.sites, c.dual, &loops);
+  d.report.vertex_shortfall = int64_t(job.options.vertices) - int64_t(d.dual.mesh.vertex_count());
+  d.report.duplicate_faces_removed = d.dual.duplicate_faces_removed;
+  d.report.boundary_vertices_added = d.dual.boundary_vertices_added;
+  d.report.holes_closed = d.dual.holes_closed;
+  if (d.report.vertex_shortfall != 0 && c.budget.note.empty())
+    c.budget.note = "the clusters and the " + std::to_string(d.dual.boundary_vertices_added) +
+                    " boundary-strip vertices could not be brought to N exactly within the repair rounds";
+  d.defects = find_manifold_defects(d.dual.mesh.view());
+  job.seconds.dual += job.elapsed();
+  return d;
+}
+
+// Final placement (defects do not depend on positions, so it is done once, here). QEM sites
+// already lie on the surface's features; centroids are projected onto the surface. Then the
+// last-resort cleanup of the defects the repair left.
+PlacementReport place_output(Job& job, const ItemData& items, const Clusters& c, DualStage& d) {
+  job.begin("placement");
+  PlacementReport report;
+  const bool project = job.options.project_to_surface;
+  if (job.plan.quadrics) {
+    d.state.use_offsets = false;  // the centroids themselves, the fallback of needle triangles
+    std::vector<double> fallback = cluster_sites(items, d.state);
+    if (project) project_onto_clusters(job.mesh(), c.labels, fallback);
+    place_output_vertices(d.dual, d.sites);
+    report.sites_reverted = revert_needle_sites(d.dual, d.sites, fallback);
+  } else {
+    if (project) project_onto_clusters(job.mesh(), c.labels, d.sites);
+    place_output_vertices(d.dual, d.sites);
+  }
+  if (!d.defects.empty()) {
+    report.defects_removed = remove_manifold_defects(d.dual);
+    d.defects = find_manifold_defects(d.dual.mesh.view());
+  }
+  report.defect_vertices = d.defects.size();
+  job.seconds.placement = job.elapsed();
+  return report;
+}
+
+// The quality post-pass: flips keep V, F, boundary and genus; moves stay on the input. The
+// strips are shaped after the interior, once their cluster neighbours have settled.
+QualityPassReport improve_quality(Job& job, const Clusters& c, const BoundaryLoops& loops, DualMesh& dual) {
+  job.begin("optimize");
+  QualityPassReport report;
+  const MeshOptimizeOptions& optimize = job.plan.optimize_options;
+  const bool relax = optimize.relax_iterations > 0;
+  std::vector<uint8_t> movable(dual.mesh.vertex_count(), 0);
+  std::vector<uint32_t> anchors(dual.mesh.vertex_count(), UINT32_MAX);
+  if (relax) {
+    movable = remesh_movable_vertices(c.labels, c.budget, dual.cluster_of_output_vertex);
+    anchors = cluster_anchor_faces(job.mesh(), c.labels, dual.cluster_of_output_vertex, dual.mesh.positions);
+  }
+  report.interior =
+      optimize_mesh_quality(dual.mesh.positions, dual.mesh.triangles, movable, &job.mesh(), anchors, optimize);
+  if (relax) {
+    StripShapeOptions strip;
+    strip.keep_surface_offset = optimize.keep_surface_offset;
+    strip.strip_spacing = c.dual.strip_spacing;
+    report.strips = shape_boundary_strips(dual, job.mesh(), loops, movable, anchors, strip);
+  }
+  job.seconds.optimize = job.elapsed();
+  return report;
+}
+
+// The checks: first the safety net for flat faces (collinear float32 vertices: a cluster
+// vertex on a strip chord), then the topology of closed inputs (the Euler characteristic and
+// closure kept; a change is reported, never silent), one output piece per input component
+// with its genus and no new loops, the strip quality and the clusters' connectivity.
+OutputChecks check_output(Job& job, const Clusters& c, const BoundaryLoops& loops, const PlacementReport& placement,
+                          DualMesh& dual) {
+  job.begin("checks");
+  const MeshView& mesh = job.mesh();
+  OutputChecks checks;
+  checks.flat_faces = repair_flat_faces(dual.mesh.positions, dual.mesh.triangles);
+  if (dual.mesh.face_count() == 0 && mesh.face_count() > 0)
+    throw InputError("cannot build a valid surface with N=" + std::to_string(job.options.vertices) +
+                     " vertices: the mesh's features are thinner than a cluster at this budget; use a larger N");
+  const InputClosure input = input_closure(mesh);
+  checks.input_euler_characteristic = input.euler_characteristic;
+  checks.output_euler_characteristic = compute_topology_stats(dual.mesh.view()).euler_characteristic;
+  checks.topology_changed = input.closed && (checks.output_euler_characteristic != checks.input_euler_characteristic ||
+                                             placement.defects_removed.faces_removed > 0);
+  const std::vector<uint32_t> component_of_cluster = component_of_each_cluster(c.labels, c.budget, c.K);
+  const std::vector<ComponentShape> shapes = input_component_shapes(
+      mesh, c.budget.component_of_vertex, uint32_t(c.budget.clusters_per_component.size()), loops);
+  checks.components =
+      check_component_topology(shapes, dual.mesh.view(), dual.cluster_of_output_vertex, component_of_cluster);
+  checks.strips = strip_face_quality(dual.mesh.positions, dual.mesh.triangles, dual.cluster_of_output_vertex);
+  checks.clusters_connected = clusters_connected(mesh, c.labels, c.K);
+  job.seconds.checks = job.elapsed();
+  return checks;
+}
+
+// The carried attributes, after every edit of the output's vertex set, while the labels exist.
+std::vector<float> carry_attributes(Job& job, const Clusters& c, const DualMesh& dual) {
+  job.begin("attributes");
+  const std::vector<float> means = cluster_attribute_means(job.mesh(), c.labels, c.K, job.options.attributes);
+  std::vector<float> rows = output_vertex_attributes(means, dual, job.options.attributes);
+  job.seconds.attributes = job.elapsed();
+  return rows;
+}
+
+}  // namespace streamcvd::stages

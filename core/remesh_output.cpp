@@ -9,6 +9,7 @@
 #include "streamcvd/core/measure/mesh_stats.h"
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/core/remesh_stages.h"
+#include "streamcvd/core/mesh/triangle_quality.h"
 
 namespace streamcvd::stages {
 
@@ -21,22 +22,6 @@ void place_output_vertices(DualMesh& dual, std::span<const double> z) {
     if (c >= 0)
       for (int k = 0; k < 3; ++k) dual.mesh.positions[3 * size_t(v) + k] = float(z[3 * size_t(c) + k]);
   }
-}
-
-// Quality Q = 6/√3 · area / (half-perimeter · longest edge) of an output triangle.
-double triangle_quality(const float* a, const float* b, const float* c) {
-  double e[3][3], len[3];
-  for (int k = 0; k < 3; ++k) {
-    e[0][k] = double(b[k]) - a[k];
-    e[1][k] = double(c[k]) - b[k];
-    e[2][k] = double(a[k]) - c[k];
-  }
-  for (int i = 0; i < 3; ++i) len[i] = std::sqrt(e[i][0] * e[i][0] + e[i][1] * e[i][1] + e[i][2] * e[i][2]);
-  const double cx = e[0][1] * e[1][2] - e[0][2] * e[1][1], cy = e[0][2] * e[1][0] - e[0][0] * e[1][2],
-               cz = e[0][0] * e[1][1] - e[0][1] * e[1][0];
-  const double area = 0.5 * std::sqrt(cx * cx + cy * cy + cz * cz);
-  const double denom = 0.5 * (len[0] + len[1] + len[2]) * std::max({len[0], len[1], len[2]});
-  return denom > 0 ? 6.0 / std::sqrt(3.0) * area / denom : 0.0;
 }
 
 // QEM sites of three clusters along one straight crease are collinear, and two clusters may
@@ -56,9 +41,9 @@ uint64_t revert_needle_sites(DualMesh& dual, std::vector<double>& z, std::span<c
   for (int pass = 0; pass < kMaxPasses; ++pass) {
     bool changed = false;
     const auto& tri = dual.mesh.triangles;
-    const float* P = dual.mesh.positions.data();
     for (size_t f = 0; f < tri.size(); f += 3) {
-      if (triangle_quality(P + 3 * size_t(tri[f]), P + 3 * size_t(tri[f + 1]), P + 3 * size_t(tri[f + 2])) >= kNeedleQuality)
+      if (triangle_quality(vec3::point(dual.mesh.positions, tri[f]), vec3::point(dual.mesh.positions, tri[f + 1]),
+                           vec3::point(dual.mesh.positions, tri[f + 2])) >= kNeedleQuality)
         continue;
       // Revert one site per needle and pass: the one that moved least from its fallback (a crease
       // point before a corner), so a corner is kept whenever a crease neighbour can give way.

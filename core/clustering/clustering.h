@@ -19,9 +19,8 @@
 namespace streamcvd {
 
 /// How the boundary-edge loops of Algorithm 1 run. A job has one set, ClusteringOptions::loops;
-/// each pass starts from it (minimize_clustering's passes, the repair's relaxation through
-/// loop_options) and changes only what is the pass's own: constrained, stop_fraction,
-/// max_loops, on_loop.
+/// each pass starts from a copy of it (minimize_clustering's passes, the repair's relaxation)
+/// and changes only what is the pass's own: constrained, stop_fraction, max_loops, on_loop.
 struct LoopOptions {
   bool constrained = false;       ///< every move keeps the source cluster connected (§VI-B)
   /// Stop when fewer than this fraction of V items moved in a loop (0: when none moves). In
@@ -99,10 +98,6 @@ double clustering_energy(const ItemData& items, std::span<const ClusterSums> sum
 /// options.lloyd are not read. O((V + E) / T) per loop; nothing else may touch the labels.
 ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                                      uint32_t cluster_count, const ClusteringOptions& options);
-
-/// The loop settings a pass outside minimize_clustering starts from (the repair's
-/// relaxation): options.loops. O(1).
-inline LoopOptions loop_options(const ClusteringOptions& options) { return options.loops; }
 
 /// The state of a clustering under options.metric with its sites solved: make_cluster_state,
 /// then the QEM point of every cluster for the Q metrics (update_site_offsets; I and A have

@@ -127,9 +127,8 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     active[frozen_list[k]] = 0;
     for (uint32_t i = hidden_begin[k]; i < hidden_begin[k + 1]; ++i) labels[hidden[i]] = -1;
   }
-  ClusterState state = make_cluster_state(items, labels, K, options.clustering.metric, options.clustering.qem_threshold);
-  update_site_offsets(state);
-  LoopOptions relax = loop_options(options.clustering);
+  ClusterState state = solved_cluster_state(items, labels, K, options.clustering);
+  LoopOptions relax = options.clustering.loops;
   relax.constrained = true;
   relax.stop_fraction = 0.0;
   // A few loops: they even out the split halves and merged pairs; more only shave the energy,

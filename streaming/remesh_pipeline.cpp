@@ -1,3 +1,4 @@
+#include "streamcvd/core/dual/placement.h"
 #include "streamcvd/streaming/remesh_pipeline.h"
 
 #include <unistd.h>
@@ -69,21 +70,9 @@ void report(const PipelineOptions& options, const StageProgress& p) {
 }  // namespace
 
 InputSummary summarize_input(const MeshView& mesh, uint64_t components) {
-  InputSummary s;
-  s.vertices = mesh.vertex_count();
-  s.faces = mesh.face_count();
-  s.components = components;
-  uint64_t referenced = 0;
-  bool nonmanifold = false;
-  for (uint32_t v = 0; v < mesh.vertex_count(); ++v) {
-    uint8_t f = mesh.vertex_flags[v];
-    s.boundary_vertices += (f & kVertexBoundary) != 0;
-    nonmanifold |= (f & kVertexNonManifold) != 0;
-    referenced += (f & kVertexIsolated) == 0;
-  }
-  s.closed = s.boundary_vertices == 0 && !nonmanifold;
-  s.euler_characteristic = int64_t(referenced) - int64_t(mesh.vertex_vertex.size() / 2) + int64_t(s.faces);
-  return s;
+  const InputClosure closure = input_closure(mesh);
+  return {mesh.vertex_count(), mesh.face_count(), components, closure.boundary_vertices, closure.closed,
+          closure.euler_characteristic};
 }
 
 PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& options) {

@@ -186,7 +186,7 @@ std::vector<uint32_t> component_of_each_cluster(std::span<const int32_t> labels,
 InputClosure input_closure(const MeshView& mesh) {
   struct Partial {
     bool closed = true;
-    uint64_t referenced = 0;
+    uint64_t referenced = 0, boundary = 0;
   };
   tbb::combinable<Partial> partials;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, mesh.vertex_count(), kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
@@ -194,12 +194,14 @@ InputClosure input_closure(const MeshView& mesh) {
     for (uint32_t v = r.begin(); v != r.end(); ++v) {
       p.closed &= (mesh.vertex_flags[v] & (kVertexBoundary | kVertexNonManifold)) == 0;
       p.referenced += (mesh.vertex_flags[v] & kVertexIsolated) == 0;
+      p.boundary += (mesh.vertex_flags[v] & kVertexBoundary) != 0;
     }
   });
   InputClosure closure;
   partials.combine_each([&](const Partial& p) {
     closure.closed &= p.closed;
     closure.referenced += p.referenced;
+    closure.boundary_vertices += p.boundary;
   });
   closure.euler_characteristic =
       int64_t(closure.referenced) - int64_t(mesh.vertex_vertex.size() / 2) + int64_t(mesh.face_count());

@@ -47,6 +47,7 @@ std::vector<uint32_t> component_of_each_cluster(std::span<const int32_t> labels,
 struct InputClosure {
   bool closed = true;          ///< no boundary nor non-manifold vertex
   uint64_t referenced = 0;     ///< vertices on a face
+  uint64_t boundary_vertices = 0;
   int64_t euler_characteristic = 0;  ///< referenced − E + F
 };
 

@@ -5,7 +5,9 @@ set(STREAMCVD_PUBLIC_HEADERS
   core/clustering/clustering.h
   core/clustering/item_data.h
   core/clustering/sampling.h
+  core/dual/component_topology.h
   core/dual/dual_mesh.h
+  core/dual/flat_faces.h
   core/dual/mesh_optimize.h
   core/dual/repair.h
   core/dual/strip_shape.h
@@ -14,8 +16,6 @@ set(STREAMCVD_PUBLIC_HEADERS
   core/measure/surface_distance.h
   core/mesh/bvh.h
   core/mesh/chunked_components.h
-  core/mesh/component_topology.h
-  core/mesh/flat_faces.h
   core/mesh/large_array.h
   core/mesh/mesh_buffers.h
   core/mesh/mesh_view.h

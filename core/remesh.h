@@ -13,8 +13,8 @@
 #include "streamcvd/core/dual/mesh_optimize.h"
 #include "streamcvd/core/dual/repair.h"
 #include "streamcvd/core/dual/strip_shape.h"
-#include "streamcvd/core/mesh/component_topology.h"
-#include "streamcvd/core/mesh/flat_faces.h"
+#include "streamcvd/core/dual/component_topology.h"
+#include "streamcvd/core/dual/flat_faces.h"
 #include "streamcvd/core/mesh/large_array.h"
 #include "streamcvd/core/mesh/mesh_buffers.h"
 #include "streamcvd/core/mesh/mesh_view.h"
@@ -120,7 +120,7 @@ struct QualityPassReport {
 
 /// The checks stage: the flat-face safety net, then what the output is checked for.
 struct OutputChecks {
-  FlatFaceRepair flat_faces;  ///< zero-area faces along strips removed, flipped or nudged (core/mesh/flat_faces.h)
+  FlatFaceRepair flat_faces;  ///< zero-area faces along strips removed, flipped or nudged (core/dual/flat_faces.h)
   /// Q of the faces with a corner at a boundary-strip vertex (count, Qmin, Qav) and of the others.
   StripQuality strips;
   bool clusters_connected = false;

@@ -1,8 +1,8 @@
-// Tests of the flat-face safety net (core/mesh/flat_faces.h): a flat face along the boundary whose
+// Tests of the flat-face safety net (core/dual/flat_faces.h): a flat face along the boundary whose
 // middle vertex is interior is dropped, one across an interior edge is flipped away, one whose
 // middle vertex is on the boundary already is nudged; the result stays manifold, oriented and
 // keeps V and χ. On the dragon (seeds whose strips gave a flat face) the output has none.
-#include "streamcvd/core/mesh/flat_faces.h"
+#include "streamcvd/core/dual/flat_faces.h"
 
 #include <gtest/gtest.h>
 

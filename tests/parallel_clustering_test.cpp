@@ -33,7 +33,7 @@ namespace {
 #if defined(__SANITIZE_THREAD__)
 // ThreadSanitizer cannot see inside the uninstrumented libtbb: the other stages run TBB on one
 // thread (every test here sets kTbbThreads), and the clustering's regions run on std::threads
-// (core/mesh/parallel_blocks.h).
+// (core/clustering/parallel_blocks.h).
 constexpr bool kThreadSanitizer = true;
 constexpr uint32_t kTbbThreads = 1;
 #else

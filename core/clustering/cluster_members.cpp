@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "streamcvd/core/dual/dual_topology.h"
+#include "streamcvd/core/mesh/chunked_components.h"
 
 namespace streamcvd {
 
@@ -31,7 +31,7 @@ void ClusterMembers::rebuild() {
   joined_total_ = 0;
   // A stable counting sort over runs of chunks (one count array per run): each cluster's
   // vertices come out ascending whatever the number of runs.
-  const std::vector<VertexRange> ranges = dual::chunk_vertex_blocks(mesh_);
+  const std::vector<VertexRange> ranges = chunk_vertex_blocks(mesh_);
   const uint32_t parts = uint32_t(std::clamp<size_t>(size_t(std::min(tbb::this_task_arena::max_concurrency(), 8)), 1,
                                                      std::max<size_t>(ranges.size(), 1)));
   const uint64_t V = labels_.size();

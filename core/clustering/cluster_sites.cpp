@@ -8,7 +8,7 @@
 
 #include "streamcvd/core/clustering/clustering.h"
 #include "streamcvd/core/clustering/parallel_clustering.h"
-#include "streamcvd/core/mesh/parallel_blocks.h"
+#include "streamcvd/core/clustering/parallel_blocks.h"
 
 namespace streamcvd {
 

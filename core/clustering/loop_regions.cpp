@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <utility>
 
-#include "streamcvd/core/mesh/parallel_blocks.h"
+#include "streamcvd/core/clustering/parallel_blocks.h"
 
 namespace streamcvd::detail {
 

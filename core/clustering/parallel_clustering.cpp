@@ -40,7 +40,7 @@
 
 #include "streamcvd/core/clustering/connectivity_check.h"
 #include "streamcvd/core/clustering/loop_regions.h"
-#include "streamcvd/core/mesh/parallel_blocks.h"
+#include "streamcvd/core/clustering/parallel_blocks.h"
 #include "streamcvd/core/mesh/timer.h"
 
 namespace streamcvd {

@@ -57,22 +57,6 @@ std::vector<FaceRange> chunk_face_blocks(const MeshView& mesh, uint64_t max_face
   return out;
 }
 
-std::vector<VertexRange> chunk_vertex_blocks(const MeshView& mesh) {
-  const uint32_t V = mesh.vertex_count();
-  if (mesh.chunks.empty()) {
-    Chunk whole;
-    whole.vertex_end = V;
-    return V > 0 ? chunk_ranges(std::span<const Chunk>(&whole, 1)) : std::vector<VertexRange>{};
-  }
-  uint32_t next = 0;
-  for (const Chunk& c : mesh.chunks) {
-    if (c.vertex_begin != next || c.vertex_end < c.vertex_begin) throw InputError("dual mesh: the chunks do not tile the vertices");
-    next = c.vertex_end;
-  }
-  if (next != V) throw InputError("dual mesh: the chunks do not cover the vertices");
-  return chunk_ranges(mesh.chunks);
-}
-
 std::vector<uint32_t> cluster_sizes(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count) {
   if (labels.size() != mesh.vertex_count())
     throw std::invalid_argument("cluster_sizes: " + std::to_string(labels.size()) + " labels for " +

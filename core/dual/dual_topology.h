@@ -60,10 +60,6 @@ struct FaceRange {
 /// InputError when the chunks' face ranges do not tile [0, F).
 std::vector<FaceRange> chunk_face_blocks(const MeshView& mesh, uint64_t max_faces = uint64_t(1) << 16);
 
-/// The chunks' vertex ranges (chunk_ranges; one range for a view without chunks). Throws
-/// InputError when the chunks do not tile [0, V).
-std::vector<VertexRange> chunk_vertex_blocks(const MeshView& mesh);
-
 /// Vertices per cluster (K entries; labels −1 are not counted), in parallel over the chunks'
 /// vertex ranges. Throws std::invalid_argument unless labels.size() == V.
 std::vector<uint32_t> cluster_sizes(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count);

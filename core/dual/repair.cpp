@@ -117,7 +117,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   }
   // The relaxation writes labels directly: the labels before it, in the job's storage, tell
   // which vertices it moved (the clustering loops themselves are O(V) anyway).
-  const std::vector<VertexRange> ranges = dual::chunk_vertex_blocks(mesh);
+  const std::vector<VertexRange> ranges = chunk_vertex_blocks(mesh);
   LargeArray<int32_t> before(labels.size(), storage, "labels before the relaxation");
   tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i)

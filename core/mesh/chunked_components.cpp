@@ -4,6 +4,7 @@
 // global piece ids, with the frontier records as its edges: a record (u, p) of range c says that
 // piece p of c touches vertex u of an earlier range c', whose own export lists u's piece there.
 #include "streamcvd/core/mesh/chunked_components.h"
+#include "streamcvd/core/mesh/errors.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -170,6 +171,22 @@ ComponentTable chunked_component_labels(std::span<const VertexRange> ranges, con
       }
   });
   return table;
+}
+
+std::vector<VertexRange> chunk_vertex_blocks(const MeshView& mesh) {
+  const uint32_t V = mesh.vertex_count();
+  if (mesh.chunks.empty()) {
+    Chunk whole;
+    whole.vertex_end = V;
+    return V > 0 ? chunk_ranges(std::span<const Chunk>(&whole, 1)) : std::vector<VertexRange>{};
+  }
+  uint32_t next = 0;
+  for (const Chunk& c : mesh.chunks) {
+    if (c.vertex_begin != next || c.vertex_end < c.vertex_begin) throw InputError("mesh view: the chunks do not tile the vertices");
+    next = c.vertex_end;
+  }
+  if (next != V) throw InputError("mesh view: the chunks do not cover the vertices");
+  return chunk_ranges(mesh.chunks);
 }
 
 }  // namespace streamcvd

@@ -125,6 +125,11 @@ ComponentTable merge_range_pieces(std::span<const VertexRange> ranges, std::span
 std::vector<VertexRange> chunk_ranges(std::span<const Chunk> chunks, uint32_t max_vertices = 1u << 20,
                                       uint32_t min_ranges = 16);
 
+/// The ranges of chunk_ranges over a view's chunks (one range of all vertices for a view
+/// without chunks), for passes over every vertex. Throws InputError when the chunks do not tile
+/// [0, V). O(chunks).
+std::vector<VertexRange> chunk_vertex_blocks(const MeshView& mesh);
+
 /// Fills one range: the caller adds/joins the vertices of `range` (called between begin and finish).
 using RangeFill = std::function<void(size_t index, VertexRange range, RangePieceBuilder& builder)>;
 

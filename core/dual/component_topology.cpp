@@ -1,4 +1,4 @@
-#include "streamcvd/core/mesh/component_topology.h"
+#include "streamcvd/core/dual/component_topology.h"
 
 #include <algorithm>
 #include <numeric>

@@ -1,4 +1,4 @@
-#include "streamcvd/core/mesh/flat_faces.h"
+#include "streamcvd/core/dual/flat_faces.h"
 #include "streamcvd/core/mesh/vertex_faces.h"
 
 #include <algorithm>

@@ -1,7 +1,7 @@
 #include <gtest/gtest.h>
 
 #include "streamcvd/core/measure/shapes.h"
-#include "streamcvd/streaming/io/openmesh_adapter.h"
+#include "streamcvd/streaming/openmesh_adapter.h"
 #include "tests/test_util.h"
 
 namespace streamcvd {

@@ -1,4 +1,4 @@
-#include "streamcvd/streaming/io/openmesh_adapter.h"
+#include "streamcvd/streaming/openmesh_adapter.h"
 
 #include <vector>
 

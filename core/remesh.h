@@ -27,6 +27,10 @@ struct RemeshOptions {
   uint32_t vertices = 10000;   ///< N: output vertex budget (clusters)
   uint64_t seed = 20080401;    ///< RNG seed of the initial sampling; same seed, same output
   SmallComponents small_components = SmallComponents::Keep;  ///< components too small for one cluster
+  /// Drop the sheets a topology cleaning cut off (pieces below the output resolution that touch
+  /// another at a vertex: plan_component_budget's drop_touching_small), whatever
+  /// small_components says. remesh_store sets it for a store the cleaning rebuilt.
+  bool drop_cut_sheets = false;
   bool boundary_strips = true; ///< §VI-D triangle strips along input boundaries
   /// Output vertex = the cluster centroid moved to the closest point of the input surface (among
   /// the triangles around the cluster). false = the raw centroid z_i of eq. 15, as in the paper.

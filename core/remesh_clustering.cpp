@@ -48,7 +48,8 @@ DualMeshOptions dual_options_at(const Job& job, const Items& items, uint32_t clu
 void sample_and_cluster(Job& job, const Items& items, uint32_t clusters, Clusters& c) {
   job.begin("sampling");
   const MeshView& mesh = job.mesh();
-  c.budget = plan_component_budget(mesh, items.energy, clusters, job.options.small_components, job.storage);
+  c.budget = plan_component_budget(mesh, items.energy, clusters, job.options.small_components, job.storage,
+                                   job.options.drop_cut_sheets);
   c.labels.reset();  // a second pass: the first one's labels go before the new ones come
   c.labels = initial_sampling(mesh, job.plan.tensors ? items.sampling : items.energy, c.budget, job.options.seed,
                               job.storage);

@@ -111,6 +111,8 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   result.remeshed_faces = view.face_count();
   RemeshOptions remesh_options = options.remesh;
   if (!remesh_options.density.empty() && result.subdivision_levels > 0) remesh_options.density.clear();
+  StoreBuildReport cleaning;
+  if (store.cleaning_report(cleaning) && cleaning.cleaning.rebuilt) remesh_options.drop_cut_sheets = true;
   const uint64_t ram_store = result.subdivision_levels > 0 ? subdivided.ram_bytes() : store.ram_bytes();
   result.work_ram_bytes = work_ram_budget(options.memory_limit, ram_store);
   WorkSpace space(work, result.work_ram_bytes);

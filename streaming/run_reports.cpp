@@ -381,7 +381,8 @@ nlohmann::json remesh_report(const PipelineResult& r, const PipelineOptions& opt
                  {"other_q_avg", strips.other_q_avg}};
   j["components"] = {{"count", rm.budget.clusters_per_component.size()},
                      {"small_kept", rm.budget.small_components_kept},
-                     {"dropped", rm.budget.components_dropped}};
+                     {"dropped", rm.budget.components_dropped},
+                     {"cut_sheets_dropped", rm.budget.sheets_dropped}};
   j["output"] = {{"file", job.output},
                  {"vertices", r.output_topology.vertices},
                  {"faces", r.output_topology.faces},

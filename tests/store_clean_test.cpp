@@ -341,18 +341,19 @@ TEST(StoreClean, CleanedStoreIndependentOfMemoryAndThreads) {
 struct Expected {
   const char* name;
   MeshBuffers mesh;
-  uint64_t pieces;  // output components
+  uint64_t pieces;        // output components
+  uint64_t sheets_dropped;  // sheets the cut made below the output resolution
 };
 
 TEST(StoreClean, DefectiveInputsRemeshToManifoldOutputs) {
   if (!test::cli_available()) GTEST_SKIP() << "no CLI";
   uint64_t duplicates = 0;
   std::vector<Expected> cases;
-  cases.push_back({"duplicates", with_duplicates(duplicates), 1});
-  cases.push_back({"fin", with_fin(), 2});
-  cases.push_back({"edge", spheres_sharing_an_edge(), 2});
-  cases.push_back({"vertex", spheres_sharing_a_vertex(), 2});
-  cases.push_back({"book", book(), 2});
+  cases.push_back({"duplicates", with_duplicates(duplicates), 1, 0});
+  cases.push_back({"fin", with_fin(), 1, 1});  // the 2-face fin, cut off, is below every N here
+  cases.push_back({"edge", spheres_sharing_an_edge(), 2, 0});
+  cases.push_back({"vertex", spheres_sharing_a_vertex(), 2, 0});
+  cases.push_back({"book", book(), 2, 0});
   const fs::path dir = test::temp_dir("store_clean_cli");
   for (const Expected& c : cases) {
     const std::string in = (dir / (std::string(c.name) + ".ply")).string();
@@ -369,6 +370,7 @@ TEST(StoreClean, DefectiveInputsRemeshToManifoldOutputs) {
       EXPECT_EQ(k["output_nonmanifold_vertices"].get<uint64_t>(), 0u);
       EXPECT_LE(j["output"]["boundary_loops"].get<uint64_t>(), j["cleaning"]["cleaned_boundary_loops"].get<uint64_t>());
       EXPECT_EQ(j["output"]["components"].get<uint64_t>(), c.pieces);
+      EXPECT_EQ(j["components"]["cut_sheets_dropped"].get<uint64_t>(), c.sheets_dropped);  // under the default keep
       EXPECT_EQ(j["clustering"]["defect_faces_removed"].get<uint64_t>(), 0u);
       EXPECT_TRUE(j["cleaning"]["rebuilt"].get<bool>());
     }

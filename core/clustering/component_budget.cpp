@@ -10,6 +10,7 @@
 
 #include "streamcvd/core/clustering/sampling.h"
 #include "streamcvd/core/clustering/sampling_parts.h"
+#include "streamcvd/core/mesh/coincident_components.h"
 
 namespace streamcvd {
 
@@ -106,7 +107,8 @@ std::vector<VertexRange> sampling_ranges(const MeshView& mesh) {
 
 
 ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& items, uint32_t clusters,
-                                      SmallComponents small_components, ArrayStorage& storage) {
+                                      SmallComponents small_components, ArrayStorage& storage,
+                                      bool drop_touching_small) {
   ComponentBudget b;
   const uint32_t V = mesh.vertex_count();
   const std::vector<VertexRange> ranges = sampling_ranges(mesh);
@@ -170,6 +172,16 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
     // of 3-4 clusters on a handful of triangles is too often empty or degenerate.
     if (small[c] && small_components == SmallComponents::Keep && b.vertices_per_component[c] <= kVerbatimVertices)
       lo[c] = hi[c] = b.vertices_per_component[c];
+  }
+  // A sheet the cleaning cut off a non-manifold junction (a fin, a flap of a doubled wall) that
+  // is below the output resolution goes, whatever the small-component rule (issue 16).
+  if (drop_touching_small && std::find(small.begin(), small.end(), uint8_t(1)) != small.end()) {
+    const std::vector<uint8_t> touches = components_touching_others(mesh, b.component_of_vertex.span(), C);
+    for (uint32_t c = 0; c < C; ++c)
+      if (small[c] && touches[c] && hi[c] > 0) {
+        lo[c] = hi[c] = 0;
+        ++b.sheets_dropped;
+      }
   }
   // Kept small components may take at most a fifth of the budget (a scan with hundreds of
   // floating specks at a small N must still give the main surface its share): the heaviest are

@@ -35,7 +35,8 @@ struct ComponentBudget {
   std::vector<uint8_t> component_closed;     ///< 1 when the component has no boundary vertex
   uint32_t total_clusters = 0;               ///< Σ clusters_per_component (may differ from N)
   uint32_t small_components_kept = 0;        ///< components given the minimum to stay a surface
-  uint32_t components_dropped = 0;           ///< components given no cluster (Drop mode)
+  uint32_t components_dropped = 0;           ///< components given no cluster (Drop mode, sheets)
+  uint32_t sheets_dropped = 0;               ///< of those, small ones touching another (drop_touching_small)
   std::string note;                          ///< why total_clusters ≠ N, when it is
 };
 
@@ -48,9 +49,13 @@ struct ComponentBudget {
 /// of sampling_ranges(mesh): memory is one range per thread plus the frontier records, and
 /// component_of_vertex is allocated from `storage` and written range by range.
 /// O(V + E), TBB-parallel over ranges; the result does not depend on the thread count or the
-/// storage.
+/// storage. With drop_touching_small, a small component that shares a vertex position with
+/// another (a sheet the topology cleaning cut off: core/mesh/coincident_components.h) is
+/// dropped even under Keep, and counted in sheets_dropped: one more O(V) pass, only when some
+/// component is small.
 ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& items, uint32_t clusters,
-                                      SmallComponents small_components, ArrayStorage& storage);
+                                      SmallComponents small_components, ArrayStorage& storage,
+                                      bool drop_touching_small = false);
 
 /// Initial sampling (§VI-G), range by range (the store's chunks, see sampling_ranges). Each
 /// component's clusters are shared over the ranges it touches in proportion to its weight there

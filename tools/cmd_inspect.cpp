@@ -1,6 +1,7 @@
 // `info`, `quality`, `convert`, `ingest`, `generate`: the commands that look at or move a mesh.
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 
@@ -74,49 +75,54 @@ void print_cleaning(std::FILE* out, const StoreBuildReport& b, const char* inden
                (long long)c.sheets_made(b.input_topology), u(m.nonmanifold_edges), u(m.nonmanifold_vertices));
 }
 
+// A command that reads one mesh file or store and prints figures of it: the input, --json and
+// the job options (memory, work folder, threads: limited while `run` runs).
+struct FiguresArgs {
+  std::string path;
+  bool json = false;
+  JobOptions job;
+};
+
+void add_figures_command(CLI::App& app, const char* name, const char* help,
+                         std::function<void(const FiguresArgs&)> run) {
+  auto* cmd = app.add_subcommand(name, help);
+  auto args = std::make_shared<FiguresArgs>();
+  cmd->add_option("input", args->path, "Mesh file (PLY/OBJ/OFF/STL, optionally .zst) or store directory")->required();
+  cmd->add_flag("--json", args->json, "Print JSON instead of text");
+  add_job_options(cmd, args->job);
+  cmd->callback([args, run] {
+    auto threads = thread_limit(args->job);
+    run(*args);
+  });
+}
+
 void add_info_command(CLI::App& app) {
-  auto* cmd = app.add_subcommand("info", "Counts, bounding box and topology of a mesh file or store");
-  auto path = std::make_shared<std::string>();
-  auto json = std::make_shared<bool>(false);
-  cmd->add_option("input", *path, "Mesh file (PLY/OBJ/OFF/STL, optionally .zst) or store directory")->required();
-  cmd->add_flag("--json", *json, "Print JSON instead of text");
-  auto job = std::make_shared<JobOptions>();
-  add_job_options(cmd, *job);
-  cmd->callback([=] {
-    auto threads = thread_limit(*job);
+  add_figures_command(app, "info", "Counts, bounding box and topology of a mesh file or store", [](const FiguresArgs& a) {
     StoreBuildOptions options;
-    options.memory_limit = memory_limit(*job);
-    options.work_directory = job->work_dir;
-    ProgressLine progress("info", *job);
-    const StoreBuildReport build = inspect_mesh(*path, options, [&](const StageProgress& p) { progress.update(p); });
+    options.memory_limit = memory_limit(a.job);
+    options.work_directory = a.job.work_dir;
+    ProgressLine progress("info", a.job);
+    const StoreBuildReport build = inspect_mesh(a.path, options, [&](const StageProgress& p) { progress.update(p); });
     progress.finish();
-    if (*json) {
-      print_json(info_json(*path, build));
+    if (a.json) {
+      print_json(info_json(a.path, build));
     } else {
-      print_topology(*path, build.input_topology);
+      print_topology(a.path, build.input_topology);
       if (build.topology_checked) print_cleaning(stdout, build, "  ");
     }
   });
 }
 
 void add_quality_command(CLI::App& app) {
-  auto* cmd = app.add_subcommand("quality", "Triangle quality figures (Q, angles, valence, edge lengths)");
-  auto path = std::make_shared<std::string>();
-  auto json = std::make_shared<bool>(false);
-  cmd->add_option("input", *path, "Mesh file or store directory")->required();
-  cmd->add_flag("--json", *json, "Print JSON instead of text");
-  auto job = std::make_shared<JobOptions>();
-  add_job_options(cmd, *job);
-  cmd->callback([=] {
-    auto threads = thread_limit(*job);
-    LoadedMesh mesh = load_mesh_or_store(*path, memory_limit(*job));
+  add_figures_command(app, "quality", "Triangle quality figures (Q, angles, valence, edge lengths)", [](const FiguresArgs& a) {
+    LoadedMesh mesh = load_mesh_or_store(a.path, memory_limit(a.job));
     QualityStats q = compute_quality(mesh.view());
-    if (*json) {
+    if (a.json) {
       nlohmann::json j = quality_json(q);
-      j["file"] = *path;
+      j["file"] = a.path;
       print_json(j);
     } else {
-      std::printf("%s\n", path->c_str());
+      std::printf("%s\n", a.path.c_str());
       print_quality(q);
     }
   });

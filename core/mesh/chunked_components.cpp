@@ -136,7 +136,11 @@ std::vector<VertexRange> chunk_ranges(std::span<const Chunk> chunks, uint32_t ma
   return out;
 }
 
-ComponentTable chunked_components(std::span<const VertexRange> ranges, const RangeFill& fill) {
+namespace {
+
+// Each range filled by a builder of its thread; with `labels`, its piece ids are written there.
+std::vector<RangePieces> fill_ranges(std::span<const VertexRange> ranges, const RangeFill& fill,
+                                     std::span<uint32_t> labels) {
   std::vector<RangePieces> pieces(ranges.size());
   tbb::enumerable_thread_specific<RangePieceBuilder> builders;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
@@ -144,24 +148,21 @@ ComponentTable chunked_components(std::span<const VertexRange> ranges, const Ran
     for (size_t i = r.begin(); i != r.end(); ++i) {
       b.begin(ranges[i]);
       fill(i, ranges[i], b);
-      pieces[i] = b.finish();
+      pieces[i] = labels.empty() ? b.finish() : b.finish(labels.subspan(ranges[i].begin, ranges[i].size()));
     }
   });
-  return merge_range_pieces(ranges, pieces);
+  return pieces;
+}
+
+}  // namespace
+
+ComponentTable chunked_components(std::span<const VertexRange> ranges, const RangeFill& fill) {
+  return merge_range_pieces(ranges, fill_ranges(ranges, fill, {}));
 }
 
 ComponentTable chunked_component_labels(std::span<const VertexRange> ranges, const RangeFill& fill,
                                         std::span<uint32_t> component_of_vertex) {
-  std::vector<RangePieces> pieces(ranges.size());
-  tbb::enumerable_thread_specific<RangePieceBuilder> builders;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-    RangePieceBuilder& b = builders.local();
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      b.begin(ranges[i]);
-      fill(i, ranges[i], b);
-      pieces[i] = b.finish(component_of_vertex.subspan(ranges[i].begin, ranges[i].size()));
-    }
-  });
+  const std::vector<RangePieces> pieces = fill_ranges(ranges, fill, component_of_vertex);
   ComponentTable table = merge_range_pieces(ranges, pieces);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i)

@@ -35,7 +35,6 @@ RangeFill mesh_graph_fill(const MeshView& mesh) {
   };
 }
 
-
 }  // namespace
 
 namespace sampling {
@@ -82,7 +81,6 @@ std::vector<uint32_t> proportional_split(const std::vector<double>& weights, uin
   return share;
 }
 
-
 }  // namespace sampling
 
 const char* small_components_name(SmallComponents mode) { return mode == SmallComponents::Drop ? "drop" : "keep"; }
@@ -104,7 +102,6 @@ std::vector<VertexRange> sampling_ranges(const MeshView& mesh) {
   const uint32_t min_ranges = std::clamp<uint32_t>(V / 65536, 1, 16);
   return chunk_ranges(mesh.chunks, 1u << 20, min_ranges);
 }
-
 
 ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& items, uint32_t clusters,
                                       SmallComponents small_components, ArrayStorage& storage,
@@ -233,6 +230,5 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
   }
   return b;
 }
-
 
 }  // namespace streamcvd

@@ -27,7 +27,7 @@ std::vector<uint8_t> components_touching_others(const MeshView& mesh, std::span<
   tbb::enumerable_thread_specific<std::vector<std::pair<uint32_t, uint32_t>>> touching;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, V, 1u << 16), [&](const tbb::blocked_range<uint32_t>& r) {
     const uint32_t end = uint32_t(std::min<uint64_t>(uint64_t(r.end()) + kLookAhead, V));
-    const RangeVisit visit(mesh, "components", {r.begin(), end}, kReadsPositions);
+    const RangeVisit visit(mesh, "sampling", {r.begin(), end}, kReadsPositions);  // the budget's stage
     auto& pairs = touching.local();
     for (uint32_t v = r.begin(); v != r.end(); ++v) {
       const uint32_t a = component_of_vertex[v];

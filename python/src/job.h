@@ -77,9 +77,10 @@ struct JobControl {
 };
 
 /// Runs `work()` on a worker thread without the GIL and returns its result, or rethrows its
-/// exception (or what the progress callable raised). Every 20 ms the calling thread checks for signals (PyErr_CheckSignals, so Ctrl-C
-/// and Python signal handlers work during the job): on one, it sets control.cancel, waits for
-/// the job to unwind and raises the signal's exception (KeyboardInterrupt).
+/// exception (or what the progress callable raised). Every 20 ms the calling thread checks for
+/// signals (PyErr_CheckSignals, so Ctrl-C and Python signal handlers work during the job): on
+/// one, it sets control.cancel, waits for the job to unwind and raises the signal's exception
+/// (KeyboardInterrupt).
 template <class Work>
 auto run_interruptible(JobControl& control, Work&& work) -> decltype(work()) {
   std::optional<decltype(work())> result;

@@ -149,10 +149,11 @@ CreatedDirectory::CreatedDirectory(const std::string& path) {
       const int parent_fd = ::open(parent.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
       if (parent_fd < 0) throw OutputError(error_at(path, "cannot open folder '" + parent + "': " + std::strerror(errno)));
       const int slot = register_temp(parent_fd, name, /*directory=*/true);  // before: see the registry
-      if (::mkdirat(parent_fd, name.c_str(), 0777) != 0 && errno != EEXIST) {
+      if (::mkdirat(parent_fd, name.c_str(), 0777) != 0) {
         const int e = errno;
         unregister_temp(slot);
         ::close(parent_fd);
+        if (e == EEXIST) continue;  // made meanwhile by someone else: theirs, not ours to remove
         throw OutputError(error_at(path, "cannot create folder: " + std::string(std::strerror(e))));
       }
       made_.push_back({parent_fd, name, slot});

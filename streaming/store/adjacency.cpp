@@ -231,7 +231,7 @@ void build_vertex_face_adjacency(std::span<const uint32_t> triangles, uint32_t f
     counting_sort(
         corners, vertex_count + 1, local, offsets,
         [&](uint64_t i, uint32_t at) {
-          if (local(i) < vertex_count) faces[at] = uint32_t(i / 3);
+          if (at < faces.size()) faces[at] = uint32_t(i / 3);  // the sink bucket comes last: beyond the size
         },
         [&] { faces.resize(offsets[vertex_count]); });  // a no-op for a reused array of that size
     offsets.pop_back();

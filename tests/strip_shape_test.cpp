@@ -141,9 +141,11 @@ TEST(StripShape, JaggedHolesGetWellShapedStripsOnTheInputBoundary) {
     EXPECT_EQ(r.mesh.vertex_count(), 2000u);
     EXPECT_EQ(t.nonmanifold_edges + t.nonmanifold_vertices + t.degenerate_faces + t.duplicate_faces, 0u);
     EXPECT_EQ(t.boundary_loops + r.dual.holes_closed, in.boundary_loops);
-    ASSERT_GT(r.checks.strips.strip_faces, 100u);
+    // The narrow holes close by a triangulation of their ring, which adds no strip vertex (a fan
+    // from a centre vertex did: its faces were strip faces, > 100 in all); 76 strip faces stay.
+    ASSERT_GT(r.checks.strips.strip_faces, 50u);
     // Without the strip spacing and shaping (before #13 item 6): Qav 0.768, Qmin 0.209 at both
-    // metrics; with them 0.827 and 0.369.
+    // metrics; with them 0.827 and 0.369; with the rings triangulated 0.842 and 0.478 (I).
     EXPECT_GT(r.checks.strips.strip_q_avg, 0.8);
     EXPECT_GT(r.checks.strips.strip_q_min, 0.3);
     // The output boundary (strip vertices only) lies on the input boundary polyline.

@@ -12,6 +12,7 @@
 #include <numeric>
 
 #include "streamcvd/core/dual/dual_topology.h"
+#include "streamcvd/core/dual/hole_closing.h"
 
 namespace streamcvd {
 
@@ -119,62 +120,47 @@ uint32_t add_strip_vertex(DualMesh& dual, const float* p, std::span<const uint32
   return id;
 }
 
-// True when every two vertices of `loop` are closer than `d`. The bounding box decides most
-// loops in O(n) (its diagonal bounds the diameter from above, its longest side from below);
-// the others are compared pairwise, up to 4096 vertices (larger ones: the diagonal decides).
-bool diameter_below(const float* P, std::span<const uint32_t> loop, double d) {
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (uint32_t v : loop)
-    for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], double(P[3 * size_t(v) + c])), hi[c] = std::max(hi[c], double(P[3 * size_t(v) + c]));
-  double diagonal2 = 0, side = 0;
-  for (int c = 0; c < 3; ++c) diagonal2 += (hi[c] - lo[c]) * (hi[c] - lo[c]), side = std::max(side, hi[c] - lo[c]);
-  if (diagonal2 < d * d) return true;
-  if (side >= d || loop.size() > 4096) return false;
-  for (size_t i = 0; i < loop.size(); ++i)
-    for (size_t j = i + 1; j < loop.size(); ++j) {
-      double d2 = 0;
-      for (int c = 0; c < 3; ++c) {
-        const double x = double(P[3 * size_t(loop[i]) + c]) - P[3 * size_t(loop[j]) + c];
-        d2 += x * x;
-      }
-      if (d2 >= d * d) return false;
-    }
-  return true;
-}
-
 // Closes a hole below the output resolution in the dual when the clusters around it are
 // distinct: each change a → b of the loop (`changes`: loop positions k whose edge
-// loop[k] → loop[k+1] changes cluster) gives the dual edge b → a on the hole's side, and those
-// edges are filled by one triangle (3 clusters) or a fan from a vertex at the loop's centroid.
-// A cluster met twice encloses the clusters between its two stretches: no disc over the hole
-// has it as one vertex (it would be pinched), so such a loop keeps its strip: returns false.
-bool close_hole(const float* P, std::span<const uint32_t> loop, std::span<const uint32_t> changes,
-                std::span<const int32_t> labels, std::span<const uint32_t> output_of_cluster, DualMesh& dual,
-                std::vector<dual::Face>& faces) {
+// loop[k] → loop[k+1] changes cluster) gives the dual edge b → a on the hole's side, and the
+// ring of those edges is triangulated (core/dual/hole_closing.h); a `narrow` hole (diameter
+// below the closing one) whose ring has no such triangulation gets a fan from a vertex at the
+// loop's centroid. A cluster met twice encloses the clusters between its two stretches: no disc
+// over the hole has it as one vertex (it would be pinched), so such a loop keeps its strip:
+// returns false.
+bool close_hole(const MeshView& mesh, std::span<const uint32_t> loop, std::span<const uint32_t> changes,
+                std::span<const int32_t> labels, std::span<const uint32_t> output_of_cluster, bool narrow,
+                DualMesh& dual, std::vector<dual::Face>& faces) {
   const size_t n = loop.size(), m = changes.size();
-  auto from = [&](size_t t) { return labels[loop[changes[t % m]]]; };
-  auto to = [&](size_t t) { return labels[loop[(changes[t % m] + 1) % n]]; };
   std::vector<int32_t> ring(m);
-  for (size_t t = 0; t < m; ++t) ring[t] = to(t);
-  std::sort(ring.begin(), ring.end());
-  if (std::adjacent_find(ring.begin(), ring.end()) != ring.end()) return false;
-  if (m == 3) {  // edges to → from: (to0, from0 = to2, to1)
-    faces.push_back(dual::rotate_smallest_first(output_of_cluster[to(0)], output_of_cluster[from(0)], output_of_cluster[to(1)]));
+  for (size_t t = 0; t < m; ++t) ring[t] = labels[loop[(changes[t] + 1) % n]];
+  std::vector<int32_t> sorted = ring;
+  std::sort(sorted.begin(), sorted.end());
+  if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) return false;
+  if (m == 3) {  // the edges r1 → r0, r2 → r1, r0 → r2
+    faces.push_back(dual::rotate_smallest_first(output_of_cluster[ring[0]], output_of_cluster[ring[2]], output_of_cluster[ring[1]]));
     return true;
   }
+  const auto triangles = dual::triangulate_hole_ring(mesh, loop, changes, ring, labels);
+  for (const auto& t : triangles)
+    faces.push_back(dual::rotate_smallest_first(output_of_cluster[t[0]], output_of_cluster[t[1]], output_of_cluster[t[2]]));
+  if (!triangles.empty()) return true;
+  if (!narrow) return false;
+  const float* P = mesh.positions.data();
   double c[3] = {0, 0, 0};
   for (uint32_t v : loop)
     for (int k = 0; k < 3; ++k) c[k] += P[3 * size_t(v) + k];
   const float centre[3] = {float(c[0] / double(n)), float(c[1] / double(n)), float(c[2] / double(n))};
   const uint32_t h = add_strip_vertex(dual, centre, loop);
-  for (size_t t = 0; t < m; ++t) faces.push_back(dual::rotate_smallest_first(h, output_of_cluster[to(t)], output_of_cluster[from(t)]));
+  for (size_t t = 0; t < m; ++t)
+    faces.push_back(dual::rotate_smallest_first(h, output_of_cluster[ring[t]], output_of_cluster[ring[(t + m - 1) % m]]));
   return true;
 }
 
 // Appends the §VI-D strip of every boundary loop: for each change of cluster a → b along the
 // loop, a vertex p at the middle of that boundary edge and the triangles (p, b, a) and
-// (p, p_next, b). Loops meeting fewer than three clusters, and loops narrower than
-// options.close_hole_diameter, close instead.
+// (p, p_next, b). Loops meeting fewer than three clusters, and loops below the output
+// resolution (options.close_hole_diameter, close_hole_width), close instead.
 void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
                          std::span<const uint32_t> output_of_cluster, std::span<const uint32_t> cluster_size,
                          const DualMeshOptions& options, DualMesh& dual, std::vector<dual::Face>& faces) {
@@ -212,8 +198,9 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
     bool all_single = changes.size() == loop.size();
     for (uint32_t k = 0; all_single && k < loop.size(); ++k) all_single = cluster_size[labels[loop[k]]] == 1;
     if (all_single) continue;
-    if (options.close_hole_diameter > 0 && diameter_below(P, loop, options.close_hole_diameter) &&
-        close_hole(P, loop, changes, labels, output_of_cluster, dual, faces)) {
+    const bool narrow = options.close_hole_diameter > 0 && dual::diameter_below(P, loop, options.close_hole_diameter);
+    const bool slit = !narrow && options.close_hole_width > 0 && dual::loop_width(P, loop) < options.close_hole_width;
+    if ((narrow || slit) && close_hole(mesh, loop, changes, labels, output_of_cluster, narrow, dual, faces)) {
       ++dual.holes_closed;
       continue;
     }

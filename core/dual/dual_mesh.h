@@ -20,6 +20,10 @@ struct DualMeshOptions {
   /// units) is below this are holes under the output resolution: they close (a triangle or a fan
   /// over the clusters around them) instead of getting a strip of slivers. 0 = never.
   double close_hole_diameter = 0;
+  /// Boundary loops whose width (their extent across their main direction) is below this are
+  /// holes under the output resolution too — slits whose two sides are closer than an output
+  /// edge: their ring of clusters is triangulated (core/dual/hole_closing.h). 0 = never.
+  double close_hole_width = 0;
   /// Typical output edge length (typical_dual_edge), 0 = off. When set, the strip follows the
   /// clusters' spacing rather than the input's boundary edges: consecutive cluster changes whose
   /// strip points are closer than half of it share one point (while the clusters around the

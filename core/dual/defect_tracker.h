@@ -27,8 +27,8 @@ class DefectTracker {
   DefectTracker(const MeshView& mesh, const BoundaryLoops& loops, uint32_t K, const DualMeshOptions& options,
                 const ClusterMembers& members);
 
-  /// Checks every cluster: O(V + F) reads, chunk-parallel. Returns the clusters on and around
-  /// defects (sorted, unique).
+  /// Checks every cluster: O(V + F) reads, chunk-parallel. Returns the clusters on defects and
+  /// those around a defective strip vertex (sorted, unique).
   std::vector<int32_t> check_all(std::span<const int32_t> labels);
 
   /// Re-checks the clusters whose faces may differ since the last check: `log` lists the label

@@ -50,7 +50,7 @@ struct DefectRepairResult {
   double check_seconds = 0, repair_seconds = 0;
 };
 
-/// The repair loop: finds the clusters on and around dual-mesh defects (same defects as
+/// The repair loop: finds the clusters on dual-mesh defects (same defects as
 /// find_manifold_defects on the built dual, strips included, plus input-adjacent cluster pairs
 /// with no dual edge, dual::unjoined_pairs), repairs them (splits in two, islands dissolved,
 /// the cluster count kept by merging light pairs far from any defect or splitting heavy

@@ -58,7 +58,6 @@ using detail::shifted_bounds;
 using detail::tls_threads;
 
 constexpr int32_t kShared = -1;  // owner of a cluster that no single region holds alone
-constexpr int32_t kUnseen = -2;
 constexpr uint32_t kNone = UINT32_MAX;
 constexpr size_t kSerialBelow = 2048;  // candidate vertices below which a sweep runs on one thread
 

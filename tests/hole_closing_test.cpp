@@ -68,12 +68,12 @@ TEST(HoleClosing, LoopWidthIsTheExtentAcrossTheMainDirection) {
     P.insert(P.end(), {0.6f * x, 0.8f * x, y});
     loop.push_back(uint32_t(k));
   }
-  EXPECT_NEAR(dual::loop_width(P.data(), loop), 1.0, 1e-5);
-  EXPECT_FALSE(dual::diameter_below(P.data(), loop, 10.0));
-  EXPECT_TRUE(dual::diameter_below(P.data(), loop, 10.1));
+  EXPECT_NEAR(dual::loop_width(P, loop), 1.0, 1e-5);
+  EXPECT_FALSE(dual::diameter_below(P, loop, 10.0));
+  EXPECT_TRUE(dual::diameter_below(P, loop, 10.1));
   for (float& x : P) x *= 0.3f;
   std::vector<float> square = {0, 0, 0, 3, 0, 0, 3, 3, 0, 0, 3, 0};
-  EXPECT_NEAR(dual::loop_width(square.data(), loop), 3.0, 1e-5);
+  EXPECT_NEAR(dual::loop_width(square, loop), 3.0, 1e-5);
 }
 
 TEST(HoleClosing, ASlitClosesByATriangulationOfItsRing) {

@@ -198,8 +198,8 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
     bool all_single = changes.size() == loop.size();
     for (uint32_t k = 0; all_single && k < loop.size(); ++k) all_single = cluster_size[labels[loop[k]]] == 1;
     if (all_single) continue;
-    const bool narrow = options.close_hole_diameter > 0 && dual::diameter_below(P, loop, options.close_hole_diameter);
-    const bool slit = !narrow && options.close_hole_width > 0 && dual::loop_width(P, loop) < options.close_hole_width;
+    const bool narrow = options.close_hole_diameter > 0 && dual::diameter_below(mesh.positions, loop, options.close_hole_diameter);
+    const bool slit = !narrow && options.close_hole_width > 0 && dual::loop_width(mesh.positions, loop) < options.close_hole_width;
     if ((narrow || slit) && close_hole(mesh, loop, changes, labels, output_of_cluster, narrow, dual, faces)) {
       ++dual.holes_closed;
       continue;

@@ -6,47 +6,45 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <unordered_set>
+
+#include "streamcvd/core/mesh/vec3.h"
 
 namespace streamcvd::dual {
 
-bool diameter_below(const float* P, std::span<const uint32_t> loop, double d) {
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (uint32_t v : loop)
-    for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], double(P[3 * size_t(v) + c])), hi[c] = std::max(hi[c], double(P[3 * size_t(v) + c]));
+bool diameter_below(std::span<const float> xyz, std::span<const uint32_t> loop, double d) {
+  vec3::Vec3 lo = {INFINITY, INFINITY, INFINITY}, hi = {-INFINITY, -INFINITY, -INFINITY};
+  for (uint32_t v : loop) {
+    const vec3::Vec3 p = vec3::point(xyz, v);
+    for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], p[c]), hi[c] = std::max(hi[c], p[c]);
+  }
   // The box's diagonal bounds the diameter from above, its longest side from below.
-  double diagonal2 = 0, side = 0;
-  for (int c = 0; c < 3; ++c) diagonal2 += (hi[c] - lo[c]) * (hi[c] - lo[c]), side = std::max(side, hi[c] - lo[c]);
-  if (diagonal2 < d * d) return true;
-  if (side >= d || loop.size() > 4096) return false;
+  const vec3::Vec3 box = vec3::sub(hi, lo);
+  if (vec3::dot(box, box) < d * d) return true;
+  if (std::max({box[0], box[1], box[2]}) >= d || loop.size() > 4096) return false;
   for (size_t i = 0; i < loop.size(); ++i)
     for (size_t j = i + 1; j < loop.size(); ++j) {
-      double d2 = 0;
-      for (int c = 0; c < 3; ++c) {
-        const double x = double(P[3 * size_t(loop[i]) + c]) - P[3 * size_t(loop[j]) + c];
-        d2 += x * x;
-      }
-      if (d2 >= d * d) return false;
+      const vec3::Vec3 e = vec3::sub(vec3::point(xyz, loop[i]), vec3::point(xyz, loop[j]));
+      if (vec3::dot(e, e) >= d * d) return false;
     }
   return true;
 }
 
-double loop_width(const float* P, std::span<const uint32_t> loop) {
+double loop_width(std::span<const float> xyz, std::span<const uint32_t> loop) {
   if (loop.empty()) return 0;
+  auto at = [&](uint32_t v) {
+    const vec3::Vec3 p = vec3::point(xyz, v);
+    return Eigen::Vector3d(p[0], p[1], p[2]);
+  };
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (uint32_t v : loop) mean += Eigen::Vector3d(P[3 * size_t(v)], P[3 * size_t(v) + 1], P[3 * size_t(v) + 2]);
+  for (uint32_t v : loop) mean += at(v);
   mean /= double(loop.size());
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-  for (uint32_t v : loop) {
-    const Eigen::Vector3d x = Eigen::Vector3d(P[3 * size_t(v)], P[3 * size_t(v) + 1], P[3 * size_t(v) + 2]) - mean;
-    covariance += x * x.transpose();
-  }
+  for (uint32_t v : loop) covariance += (at(v) - mean) * (at(v) - mean).transpose();
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(covariance);
   const Eigen::Vector3d across = eigen.eigenvectors().col(1);  // eigenvalues ascending: the middle one
   double lo = INFINITY, hi = -INFINITY;
-  for (uint32_t v : loop) {
-    const double s = across.dot(Eigen::Vector3d(P[3 * size_t(v)], P[3 * size_t(v) + 1], P[3 * size_t(v) + 2]));
-    lo = std::min(lo, s), hi = std::max(hi, s);
-  }
+  for (uint32_t v : loop) lo = std::min(lo, across.dot(at(v))), hi = std::max(hi, across.dot(at(v)));
   return hi - lo;
 }
 
@@ -69,32 +67,21 @@ bool ring_neighbours(const MeshView& mesh, std::span<const uint32_t> loop, std::
   };
   adjacent.assign(m * m, 0);
   std::vector<uint32_t> queue(loop.begin(), loop.end());
-  std::sort(queue.begin(), queue.end());
-  queue.erase(std::unique(queue.begin(), queue.end()), queue.end());
-  std::vector<uint32_t> seen = queue;  // sorted visited set, merged in after each wave
+  std::unordered_set<uint32_t> seen(loop.begin(), loop.end());
   bool outside = false;
-  while (!queue.empty()) {
-    std::vector<uint32_t> next;
-    for (uint32_t v : queue) {
-      const int64_t i = position(labels[v]);
-      for (uint32_t u : mesh.neighbours(v)) {
-        if (labels[u] < 0) continue;
-        const int64_t j = position(labels[u]);
-        if (j < 0) {
-          outside = true;
-          continue;
-        }
-        if (j != i) adjacent[size_t(i) * m + size_t(j)] = adjacent[size_t(j) * m + size_t(i)] = 1;
-        if (!std::binary_search(seen.begin(), seen.end(), u)) next.push_back(u);
+  for (size_t head = 0; head < queue.size(); ++head) {
+    const uint32_t v = queue[head];
+    const int64_t i = position(labels[v]);
+    for (uint32_t u : mesh.neighbours(v)) {
+      if (labels[u] < 0) continue;
+      const int64_t j = position(labels[u]);
+      if (j < 0) {
+        outside = true;
+        continue;
       }
+      if (j != i) adjacent[size_t(i) * m + size_t(j)] = adjacent[size_t(j) * m + size_t(i)] = 1;
+      if (seen.insert(u).second) queue.push_back(u);
     }
-    std::sort(next.begin(), next.end());
-    next.erase(std::unique(next.begin(), next.end()), next.end());
-    std::vector<uint32_t> merged;
-    merged.reserve(seen.size() + next.size());
-    std::merge(seen.begin(), seen.end(), next.begin(), next.end(), std::back_inserter(merged));
-    seen = std::move(merged);
-    queue = std::move(next);
   }
   return outside;
 }
@@ -110,19 +97,13 @@ std::vector<std::array<uint32_t, 3>> triangulate_hole_ring(const MeshView& mesh,
   std::vector<uint8_t> adjacent;
   if (!ring_neighbours(mesh, loop, ring, labels, adjacent)) return {};
   // Each ring cluster at the mean of the loop vertices it holds.
-  const float* P = mesh.positions.data();
-  std::vector<std::array<double, 3>> at(m, {0, 0, 0});
+  std::vector<vec3::Vec3> at(m, {0, 0, 0});
   for (size_t t = 0; t < m; ++t) {
     const size_t begin = (changes[t] + 1) % n, length = (changes[(t + 1) % m] + n - begin) % n + 1;
-    for (size_t k = 0; k < length; ++k)
-      for (int c = 0; c < 3; ++c) at[t][c] += P[3 * size_t(loop[(begin + k) % n]) + c];
-    for (int c = 0; c < 3; ++c) at[t][c] /= double(length);
+    for (size_t k = 0; k < length; ++k) at[t] = vec3::add(at[t], vec3::point(mesh.positions, loop[(begin + k) % n]));
+    at[t] = vec3::scale(at[t], 1.0 / double(length));
   }
-  auto distance = [&](size_t i, size_t j) {
-    double d2 = 0;
-    for (int c = 0; c < 3; ++c) d2 += (at[i][c] - at[j][c]) * (at[i][c] - at[j][c]);
-    return std::sqrt(d2);
-  };
+  auto distance = [&](size_t i, size_t j) { return vec3::norm(vec3::sub(at[i], at[j])); };
   // cost[i·m + k]: least total diagonal length of a triangulation of the polygon i … k (i < k).
   constexpr double kNo = std::numeric_limits<double>::infinity();
   std::vector<double> cost(m * m, 0.0);

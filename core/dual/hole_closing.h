@@ -16,14 +16,14 @@
 
 namespace streamcvd::dual {
 
-/// True when every two vertices of `loop` (input ids into the 3·V floats P) are closer than
+/// True when every two vertices of `loop` (ids into the 3·V floats xyz) are closer than
 /// `d`. The bounding box decides most loops in O(n); the others are compared pairwise, up to
 /// 4096 vertices (larger ones: the box's diagonal decides).
-bool diameter_below(const float* P, std::span<const uint32_t> loop, double d);
+bool diameter_below(std::span<const float> xyz, std::span<const uint32_t> loop, double d);
 
 /// Extent of `loop` across its main direction: the spread of its vertices along the second
 /// principal axis of their covariance (a slit's width, a round hole's diameter). O(n).
-double loop_width(const float* P, std::span<const uint32_t> loop);
+double loop_width(std::span<const float> xyz, std::span<const uint32_t> loop);
 
 /// Triangulates the ring of clusters around a hole: ring[t] is the cluster the loop enters at
 /// its t-th change (distinct, at least 3). Each cluster stands at the mean of the loop vertices

@@ -36,14 +36,134 @@ size_t common_count(std::span<const int32_t> x, std::span<const int32_t> y) {
 
 }  // namespace
 
+namespace {
+
+// The members of cluster c next to another cluster, as (that cluster, member), sorted: runs of
+// one neighbour's frontier.
+std::vector<std::pair<int32_t, uint32_t>> frontier_contacts(const MeshView& mesh, std::span<const int32_t> labels,
+                                                            std::span<const uint32_t> members) {
+  const int32_t c = labels[members[0]];
+  std::vector<std::pair<int32_t, uint32_t>> contacts;
+  for (uint32_t v : members)
+    for (uint32_t n : mesh.neighbours(v))
+      if (labels[n] >= 0 && labels[n] != c) contacts.push_back({labels[n], v});
+  dual::sort_unique(contacts);
+  return contacts;
+}
+
+// The members on c's frontier with any other cluster, sorted.
+std::vector<uint32_t> frontier_members(std::span<const std::pair<int32_t, uint32_t>> contacts) {
+  std::vector<uint32_t> frontier;
+  for (const auto& [y, v] : contacts) frontier.push_back(v);
+  dual::sort_unique(frontier);
+  return frontier;
+}
+
+// The two largest connected parts (1-ring adjacency inside the cluster) of `vertices`, members
+// of the cluster, largest first: one when they are connected. O(Σ degree + cluster size).
+std::vector<std::vector<uint32_t>> two_largest_parts(const MeshView& mesh, std::span<const int32_t> labels,
+                                                     std::span<const uint32_t> members,
+                                                     std::span<const uint32_t> vertices, SplitScratch& scratch) {
+  const int32_t c = labels[members[0]];
+  auto slot = [&](uint32_t v) { return slot_of(members, v); };
+  scratch.stamp.assign(members.size(), 0);  // 1: in `vertices`, 2: reached
+  for (uint32_t v : vertices) scratch.stamp[slot(v)] = 1;
+  std::vector<std::vector<uint32_t>> parts;
+  for (uint32_t start : vertices) {
+    if (scratch.stamp[slot(start)] == 2) continue;
+    std::vector<uint32_t> part = {start};
+    scratch.stamp[slot(start)] = 2;
+    for (size_t h = 0; h < part.size(); ++h)
+      for (uint32_t n : mesh.neighbours(part[h]))
+        if (labels[n] == c && scratch.stamp[slot(n)] == 1) {
+          scratch.stamp[slot(n)] = 2;
+          part.push_back(n);
+        }
+    parts.push_back(std::move(part));
+  }
+  std::stable_sort(parts.begin(), parts.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  if (parts.size() > 2) parts.resize(2);
+  return parts;
+}
+
+// Seeds that cut a defective cluster where its dual vertex is not a disc, as two groups of
+// members, or nothing when its frontier is one arc per neighbour and one part in all.
+// - c meets a neighbour y along several arcs (the dual edge c–y has four faces): the two
+//   largest arcs. A farthest-point split cuts such a cluster along its length, and each half
+//   still meets y twice (dragon → 1000: the clusters at a tooth were halved 30 → 21 → 12 → 10
+//   members over four rounds before the defect went).
+// - c is a band (its frontier has several parts: a ring round a thin feature, two fans in the
+//   dual): two far-apart members of its largest frontier part, when the halves grown from them
+//   both reach both parts; grown from the parts themselves, the halves would be two bands
+//   again. Else nothing: on a band longer than it is round, the far end lies at equal hop
+//   distance from both seeds and goes to one half, and the farthest-point split cuts it along.
+std::vector<std::vector<uint32_t>> defect_cut_seeds(const MeshView& mesh, std::span<const int32_t> labels,
+                                                    std::span<const uint32_t> members, SplitScratch& scratch) {
+  const auto contacts = frontier_contacts(mesh, labels, members);
+  std::vector<uint32_t> arc;
+  for (size_t i = 0; i < contacts.size();) {
+    size_t j = i;
+    arc.clear();
+    while (j < contacts.size() && contacts[j].first == contacts[i].first) arc.push_back(contacts[j++].second);
+    i = j;
+    if (arc.size() < 2) continue;
+    auto arcs = two_largest_parts(mesh, labels, members, arc, scratch);
+    if (arcs.size() == 2) return arcs;
+  }
+  const auto parts = two_largest_parts(mesh, labels, members, frontier_members(contacts), scratch);
+  if (parts.size() < 2) return {};
+  // Two far-apart members of its largest part: the halves grown from them are kept when each
+  // reaches both parts (a cut across). Otherwise one half is a lens or a band again (elephant →
+  // 100: a 6-member half between two clusters, dissolved back, 40 rounds running).
+  const int32_t c = labels[members[0]];
+  auto slot = [&](uint32_t v) { return slot_of(members, v); };
+  std::vector<uint8_t> part_of(members.size(), 0);  // 1, 2: in that frontier part
+  for (uint8_t k = 0; k < 2; ++k)
+    for (uint32_t v : parts[k]) part_of[slot(v)] = uint8_t(k + 1);
+  const uint32_t from = parts[0][0];
+  scratch.stamp.assign(members.size(), 0);
+  flood_label(mesh, labels, c, {&from, 1}, slot, scratch.stamp, 1, scratch.queue, [](uint32_t, uint32_t) {});
+  uint32_t to = from;
+  for (auto it = scratch.queue.rbegin(); it != scratch.queue.rend() && to == from; ++it)
+    if (part_of[slot(*it)] == 1) to = *it;
+  if (to == from) return {};
+  std::vector<uint8_t> half(members.size(), 0);
+  const uint32_t seeds[2] = {from, to};
+  half[slot(from)] = 1;
+  half[slot(to)] = 2;
+  scratch.stamp.assign(members.size(), 0);
+  flood_label(mesh, labels, c, seeds, slot, scratch.stamp, 1, scratch.queue,
+              [&](uint32_t a, uint32_t v) { half[slot(v)] = half[slot(a)]; });
+  uint8_t reach[3] = {0, 0, 0};  // per half, bit k: reaches frontier part k + 1
+  for (size_t i = 0; i < members.size(); ++i)
+    if (part_of[i] != 0) reach[half[i]] |= uint8_t(1u << (part_of[i] - 1));
+  if (reach[1] == 3 && reach[2] == 3) return {{from}, {to}};
+  return {};
+}
+
+}  // namespace
+
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
-                       std::span<const int32_t> new_labels, SplitScratch& scratch) {
+                       std::span<const int32_t> new_labels, SplitScratch& scratch, bool at_defect) {
   if (members.size() < 2 || new_labels.empty()) return 0;
   const int32_t c = labels[members[0]];
-  scratch.stamp.assign(members.size(), 0);
-  scratch.next_mark = 1;
   std::vector<uint32_t>& queue = scratch.queue;
   auto slot = [&](uint32_t v) { return slot_of(members, v); };
+  if (at_defect) {
+    const std::vector<std::vector<uint32_t>> arcs = defect_cut_seeds(mesh, labels, members, scratch);
+    if (!arcs.empty()) {
+      // Two parts grown from the two arcs: each part keeps one of them.
+      scratch.stamp.assign(members.size(), 0);
+      std::vector<uint32_t> sources = arcs[0];
+      sources.insert(sources.end(), arcs[1].begin(), arcs[1].end());
+      for (uint32_t v : arcs[1]) labels[v] = new_labels[0];
+      flood_label(mesh, labels, c, sources, slot, scratch.stamp, 1, queue,
+                  [&](uint32_t from, uint32_t v) { labels[v] = labels[from]; });
+      return 1;
+    }
+  }
+  scratch.stamp.assign(members.size(), 0);
+  scratch.next_mark = 1;
   // The member farthest (in hops inside c) from every source: the last one a flood reaches.
   auto farthest = [&](std::span<const uint32_t> sources) {
     flood_label(mesh, labels, c, sources, slot, scratch.stamp, scratch.next_mark++, queue, [](uint32_t, uint32_t) {});
@@ -70,7 +190,7 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
 ClusterRepair::ClusterRepair(const MeshView& mesh, const ItemData& items, LabelEditor& labels, uint32_t K,
                              std::span<const uint8_t> adjustable)
     : mesh_(mesh), items_(items), labels_(labels), K_(K), adjustable_(adjustable), weight_(K, 0.0),
-      touches_boundary_(K, 0), is_defect_(K), near_(K), used_(K), beside_merge_(K), partner_(K, -1) {
+      touches_boundary_(K, 0), repaired_(K, 0), is_defect_(K), near_(K), used_(K), beside_merge_(K), partner_(K, -1) {
   std::vector<int32_t> all(K);
   std::iota(all.begin(), all.end(), 0);
   refresh(all);
@@ -153,19 +273,44 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
   std::vector<int32_t> touched;
   std::vector<int32_t> free_ids;  // ids released by dissolved islands and merges
   std::vector<int32_t> to_split;
+  // Clusters with one or two neighbours go first: their dual vertex has one face or two on the
+  // same three vertices, whatever its shape, and their neighbours' defects are theirs.
+  std::vector<int32_t> spared;  // neighbours of a dissolved cluster: not split this round
+  std::vector<size_t> contacts;
   for (size_t i = 0; i < defects.size(); ++i) {
     const int32_t c = defects[i];
     const auto& list = neighbours_of_defect[i];
-    if (list.size() == 1 && !touches_boundary_[c] && !is_defect_.contains(list[0])) {
-      // An island: its surrounding cluster takes it whole (stays connected: it encloses it).
-      for (uint32_t v : members_of(c)) labels_.set(v, list[0]);
-      free_ids.push_back(c);
-      touched.push_back(list[0]);
-      ++stats.dissolved_islands;
-    } else if (size_of(c) >= 2) {
-      to_split.push_back(c);
-    }
+    if (touches_boundary_[c] || list.empty() || list.size() > 2) continue;
+    if (std::binary_search(spared.begin(), spared.end(), c)) continue;
+    // A band between its two neighbours (a ring round a tube) is cut across instead: merged,
+    // its neighbour becomes the band (torus of 80 × 32, N = 20: every cluster a ring, and
+    // merging them led to the last-resort face deletion).
+    const std::span<const uint32_t> own = members_of(c);
+    if (list.size() == 2 &&
+        two_largest_parts(mesh_, labels_.labels(), own, frontier_members(frontier_contacts(mesh_, labels_.labels(), own)),
+                          scratch_)
+                .size() > 1)
+      continue;
+    // An island joins the cluster round it (connected: it encloses it); a cluster between two
+    // (a lens on their frontier, dragon → 1000: 1-vertex clusters after a split, whose two
+    // neighbours were then halved round after round) joins the one it touches more.
+    contacts.assign(list.size(), 0);
+    for (uint32_t v : members_of(c))
+      for (uint32_t n : mesh_.neighbours(v)) {
+        auto it = std::lower_bound(list.begin(), list.end(), labels_[n]);
+        if (it != list.end() && *it == labels_[n]) ++contacts[size_t(it - list.begin())];
+      }
+    const int32_t into = list[size_t(std::max_element(contacts.begin(), contacts.end()) - contacts.begin())];
+    for (uint32_t v : members_of(c)) labels_.set(v, into);
+    free_ids.push_back(c);
+    touched.push_back(into);
+    ++stats.dissolved_islands;
+    spared.insert(spared.end(), list.begin(), list.end());
+    spared.push_back(c);
+    dual::sort_unique(spared);
   }
+  for (int32_t c : defects)
+    if (!std::binary_search(spared.begin(), spared.end(), c) && size_of(c) >= 2) to_split.push_back(c);
   // More clusters asked for: empty ids become free ones, which the heaviest clusters take below.
   {
     const size_t freed = free_ids.size();  // the dissolved islands' ids
@@ -176,7 +321,12 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
   }
   // Fewer clusters asked for: that many freed ids stay unused.
   const size_t keep_free = count_change < 0 ? size_t(-count_change) : 0;
-  auto compensable = [&](int32_t c) { return !near_.contains(c) && adjustable_[c] && !(keep_strips && touches_boundary_[c]); };
+  // Compensations stay off every cluster an earlier round repaired: a heavy cluster split there
+  // tends to sit on the thin feature the defect was on, and remade it (dragon → 1000: a 1-vertex
+  // cluster dissolved and its id split off the heavy cluster next to it, 16 rounds running).
+  auto compensable = [&](int32_t c) {
+    return !near_.contains(c) && !repaired_[c] && adjustable_[c] && !(keep_strips && touches_boundary_[c]);
+  };
   // Compensate so that the number of non-empty clusters changes by count_change.
   // A defective cluster is cut in two (measured: cutting in three fixed no more dragon defects
   // and lost genus on fertility at N = 200 more often).
@@ -236,6 +386,12 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
       const std::span<const int32_t> around_a = neighbours_now(a, fresh_a);
       const std::span<const int32_t> around_b = neighbours_now(b, fresh_b);
       if (!touches_boundary_[a] && !touches_boundary_[b] && common_count(around_a, around_b) != 2) continue;
+      // Nor when the pair and its neighbours are all there is of a small piece: merged, a
+      // tetrahedron of clusters (two common neighbours, the link condition met) becomes two
+      // faces on the same three clusters. Light clusters are those of small pieces, and count
+      // merges picked them first (dragon → 1000: pieces left with two or three clusters,
+      // repaired for three rounds each after every count round).
+      if (around_a.size() + around_b.size() - common_count(around_a, around_b) < 5) continue;
       used_.insert(a);
       used_.insert(b);
       for (const std::span<const int32_t> around : {around_a, around_b})
@@ -254,16 +410,16 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     round_neighbours_.clear();
     while (!to_split.empty() && ids_needed() + keep_free > free_ids.size()) to_split.pop_back();
   }
-  auto split = [&](int32_t c, std::span<const int32_t> ids) {
+  auto split = [&](int32_t c, std::span<const int32_t> ids, bool at_defect) {
     std::span<const uint32_t> members = members_of(c);
-    const uint32_t made = split_cluster(mesh_, labels_.labels(), members, ids, scratch_);
+    const uint32_t made = split_cluster(mesh_, labels_.labels(), members, ids, scratch_, at_defect);
     for (uint32_t v : members) labels_.note(v, c);
     return made;
   };
   for (int32_t c : to_split) {
     const size_t parts = std::min<size_t>(kParts, size_of(c));
     std::vector<int32_t> ids(free_ids.end() - std::ptrdiff_t(parts - 1), free_ids.end());
-    const uint32_t made = split(c, ids);
+    const uint32_t made = split(c, ids, true);
     if (made == 0) continue;
     touched.push_back(c);
     for (uint32_t k = 0; k < made; ++k) touched.push_back(ids[k]);
@@ -285,7 +441,7 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
       if (std::find(touched.begin(), touched.end(), c) != touched.end()) continue;
       if (labels_.index().size(c) < 2) continue;
       const int32_t id = free_ids.back();
-      if (split(c, {&id, 1}) == 0) continue;
+      if (split(c, {&id, 1}, false) == 0) continue;
       free_ids.pop_back();
       touched.push_back(c);
       touched.push_back(id);
@@ -295,6 +451,7 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
   is_defect_.clear();
   near_.clear();
   dual::sort_unique(touched);
+  for (int32_t c : defects) repaired_[c] = 1;
   return touched;
 }
 

@@ -28,10 +28,12 @@ struct SplitScratch {
 
 /// Splits the cluster whose vertices are `members` (all of them, ascending) into up to
 /// new_labels.size() + 1 connected parts grown by BFS from farthest-point seeds; part k > 0
-/// takes new_labels[k − 1]. Returns the number of new labels used (0: the cluster could not be
-/// split). O(cluster size · parts · log cluster size); reads only the members and their 1-rings.
+/// takes new_labels[k − 1]. With `at_defect`, a cluster that meets one neighbour along two
+/// arcs, or whose frontier has two parts, is instead cut in two parts grown from those arcs.
+/// Returns the number of new labels used (0: the cluster could not be split).
+/// O(cluster size · parts · log cluster size); reads only the members and their 1-rings.
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
-                       std::span<const int32_t> new_labels, SplitScratch& scratch);
+                       std::span<const int32_t> new_labels, SplitScratch& scratch, bool at_defect = false);
 
 /// One repair round at a time with state that persists across rounds: per-cluster weights and
 /// boundary contact (refreshed for the clusters whose members changed), and K-sized flag arrays
@@ -65,6 +67,7 @@ class ClusterRepair {
   std::span<const uint8_t> adjustable_;
   std::vector<double> weight_;
   std::vector<uint8_t> touches_boundary_;
+  std::vector<uint8_t> repaired_;  // clusters on a defect in an earlier round: no compensation there
   ClusterSet is_defect_, near_, used_, beside_merge_;
   std::vector<int32_t> partner_;
   std::unordered_map<int32_t, std::vector<uint32_t>> round_members_;

@@ -1,0 +1,140 @@
+// Tests of the repair's edits (core/dual/cluster_repair.h): a defective cluster is cut between
+// the two arcs along which it meets a neighbour, a band is cut across, and a cluster between
+// two others (a lens on their frontier) is dissolved rather than split.
+#include "streamcvd/core/dual/cluster_repair.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <vector>
+
+#include "streamcvd/core/clustering/clustering.h"
+#include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/dual/dual_mesh.h"
+#include "streamcvd/core/dual/dual_topology.h"
+#include "streamcvd/core/dual/repair.h"
+#include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/streaming/store/store.h"
+#include "tests/test_util.h"
+
+namespace streamcvd {
+namespace {
+
+std::vector<uint32_t> members_of(const std::vector<int32_t>& labels, int32_t c) {
+  std::vector<uint32_t> m;
+  for (uint32_t v = 0; v < labels.size(); ++v)
+    if (labels[v] == c) m.push_back(v);
+  return m;
+}
+
+// Labels of the members of `c`'s old vertices that lie next to a vertex labelled `y`.
+std::set<int32_t> labels_next_to(const MeshView& view, const std::vector<int32_t>& labels,
+                                 std::span<const uint32_t> old_members, int32_t y, auto&& keep) {
+  std::set<int32_t> out;
+  for (uint32_t v : old_members) {
+    if (!keep(v)) continue;
+    for (uint32_t n : view.neighbours(v))
+      if (labels[n] == y) out.insert(labels[v]);
+  }
+  return out;
+}
+
+TEST(ClusterSplit, ACutBetweenTheTwoArcsWhereAClusterMeetsItsNeighbour) {
+  // Grid 20 × 10: A (0) left, B (1) right, C (2) a wedge across their frontier in rows 4–5, so
+  // A meets B along two arcs (rows 0–3 and 6–9): the dual edge A–B has four faces.
+  const int nx = 20, ny = 10;
+  MeshStore store = MeshStore::build(make_grid(nx, ny).view());
+  const MeshView view = store.view();
+  std::vector<int32_t> labels(view.vertex_count());  // by position: the store orders vertices its own way
+  for (uint32_t v = 0; v < view.vertex_count(); ++v) {
+    const long i = std::lround(view.positions[3 * v] * (nx - 1)), j = std::lround(view.positions[3 * v + 1] * (ny - 1));
+    labels[v] = (j == 4 || j == 5) && i >= 8 && i <= 11 ? 2 : i < 10 ? 0 : 1;
+  }
+  const std::vector<uint32_t> a = members_of(labels, 0);
+  detail::SplitScratch scratch;
+  const int32_t new_label = 3;
+  ASSERT_EQ(detail::split_cluster(view, labels, a, {&new_label, 1}, scratch, true), 1u);
+  auto row = [&](uint32_t v) { return int(std::lround(view.positions[3 * v + 1] * (ny - 1))); };
+  const std::set<int32_t> top = labels_next_to(view, labels, a, 1, [&](uint32_t v) { return row(v) <= 3; });
+  const std::set<int32_t> bottom = labels_next_to(view, labels, a, 1, [&](uint32_t v) { return row(v) >= 6; });
+  ASSERT_EQ(top.size(), 1u) << "the arc along rows 0-3 stays in one part";
+  ASSERT_EQ(bottom.size(), 1u);
+  EXPECT_NE(*top.begin(), *bottom.begin()) << "each part keeps one arc";
+  EXPECT_TRUE(clusters_connected(view, labels, 4));
+  // The dual edge between B and each part of A now has two faces at most.
+  const std::vector<dual::Face> faces = dual::collect_triples(view, labels).faces;
+  for (int32_t part : {0, 3}) {
+    const auto on_edge = std::count_if(faces.begin(), faces.end(), [&](const dual::Face& f) {
+      return std::count(f.begin(), f.end(), uint32_t(part)) == 1 && std::count(f.begin(), f.end(), 1u) == 1;
+    });
+    EXPECT_LE(on_edge, 2) << "part " << part;
+  }
+}
+
+TEST(ClusterSplit, ABandRoundATubeIsCutAcrossNotAlongIt) {
+  // Torus of 60 rings × 16: clusters of 4 rings each are bands round the tube, shorter than
+  // they are round. A cut along the band would leave two bands; a cut across gives two pieces
+  // that each touch both neighbours.
+  const int rings = 60, segments = 16;
+  MeshStore store = MeshStore::build(make_torus(rings, segments).view());
+  const MeshView view = store.view();
+  std::vector<int32_t> labels(view.vertex_count());
+  for (uint32_t v = 0; v < view.vertex_count(); ++v) {  // ring index from the angle round the z axis
+    const double u = std::atan2(view.positions[3 * v + 1], view.positions[3 * v]);
+    const long ring = std::lround((u < 0 ? u + 2 * M_PI : u) / (2 * M_PI) * rings) % rings;
+    labels[v] = int32_t(ring / 4);
+  }
+  const std::vector<uint32_t> band = members_of(labels, 3);  // rings 12–15, between bands 2 and 4
+  detail::SplitScratch scratch;
+  const int32_t new_label = 15;
+  ASSERT_EQ(detail::split_cluster(view, labels, band, {&new_label, 1}, scratch, true), 1u);
+  for (int32_t part : {3, 15}) {
+    const std::vector<uint32_t> m = members_of(labels, part);
+    ASSERT_FALSE(m.empty());
+    std::set<int32_t> neighbours;
+    for (uint32_t v : m)
+      for (uint32_t n : view.neighbours(v))
+        if (labels[n] != part) neighbours.insert(labels[n]);
+    EXPECT_TRUE(neighbours.count(2) && neighbours.count(4)) << "part " << part << " touches both neighbouring bands";
+  }
+  EXPECT_TRUE(clusters_connected(view, labels, 16));
+}
+
+TEST(RepairLoop, ALensOnAFrontierIsDissolvedAndTheCountKept) {
+  // 8 × 8 tiles on a grid, and a small cluster (64) on the frontier of tiles 27 and 35 only:
+  // its dual vertex has two faces on the same three vertices. It joins a neighbour, a split
+  // elsewhere keeps the count, and the dual is left without defects.
+  constexpr uint32_t K = 65;
+  MeshStore store = MeshStore::build(make_grid(161, 161).view());
+  const MeshView view = store.view();
+  std::vector<int32_t> labels(view.vertex_count());
+  for (uint32_t v = 0; v < view.vertex_count(); ++v) {
+    const double x = view.positions[3 * v], y = view.positions[3 * v + 1];
+    labels[v] = std::hypot(x - 0.5, y - 0.4375) < 0.02 ? 64 : std::min(7, int(x * 8)) * 8 + std::min(7, int(y * 8));
+  }
+  std::set<int32_t> lens_neighbours;
+  for (uint32_t v : members_of(labels, 64))
+    for (uint32_t n : view.neighbours(v))
+      if (labels[n] != 64) lens_neighbours.insert(labels[n]);
+  ASSERT_EQ(lens_neighbours, (std::set<int32_t>{27, 35}));
+  const ItemData items = compute_item_data(view);
+  const BoundaryLoops loops = find_boundary_loops(view);
+  std::vector<uint8_t> adjustable(K, 1);
+  ClusteringReport report;
+  DefectRepairOptions options;
+  options.clustering = test::metric_i_one_thread();
+  const DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, options, report, ram_storage());
+  EXPECT_GE(r.islands, 1u) << "the lens is dissolved";
+  EXPECT_LE(r.rounds, 2u);
+  EXPECT_EQ(r.defect_vertices, 0u);
+  std::vector<double> z(3 * size_t(K), 0.0);
+  EXPECT_TRUE(find_manifold_defects(build_dual_mesh(view, labels, K, z, {}, &loops).mesh.view()).empty());
+  const std::vector<uint32_t> sizes = dual::cluster_sizes(view, labels, K);
+  EXPECT_EQ(std::count(sizes.begin(), sizes.end(), 0u), 0) << "the cluster count stays K";
+  EXPECT_TRUE(clusters_connected(view, labels, K));
+}
+
+}  // namespace
+}  // namespace streamcvd

@@ -74,23 +74,23 @@ TEST(ClusterSplit, ACutBetweenTheTwoArcsWhereAClusterMeetsItsNeighbour) {
 }
 
 TEST(ClusterSplit, ABandRoundATubeIsCutAcrossNotAlongIt) {
-  // Torus of 60 rings × 16: clusters of 4 rings each are bands round the tube, shorter than
-  // they are round. A cut along the band would leave two bands; a cut across gives two pieces
-  // that each touch both neighbours.
-  const int rings = 60, segments = 16;
+  // Torus of 120 rings × 8: clusters of 12 rings each are bands round the tube, longer than
+  // they are round, so a farthest-point split cuts them along the tube into two bands. A cut
+  // across gives two pieces that each touch both neighbours.
+  const int rings = 120, segments = 8;
   MeshStore store = MeshStore::build(make_torus(rings, segments).view());
   const MeshView view = store.view();
   std::vector<int32_t> labels(view.vertex_count());
   for (uint32_t v = 0; v < view.vertex_count(); ++v) {  // ring index from the angle round the z axis
     const double u = std::atan2(view.positions[3 * v + 1], view.positions[3 * v]);
     const long ring = std::lround((u < 0 ? u + 2 * M_PI : u) / (2 * M_PI) * rings) % rings;
-    labels[v] = int32_t(ring / 4);
+    labels[v] = int32_t(ring / 12);
   }
-  const std::vector<uint32_t> band = members_of(labels, 3);  // rings 12–15, between bands 2 and 4
+  const std::vector<uint32_t> band = members_of(labels, 3);  // rings 36–47, between bands 2 and 4
   detail::SplitScratch scratch;
-  const int32_t new_label = 15;
+  const int32_t new_label = 10;
   ASSERT_EQ(detail::split_cluster(view, labels, band, {&new_label, 1}, scratch, true), 1u);
-  for (int32_t part : {3, 15}) {
+  for (int32_t part : {3, 10}) {
     const std::vector<uint32_t> m = members_of(labels, part);
     ASSERT_FALSE(m.empty());
     std::set<int32_t> neighbours;
@@ -99,7 +99,7 @@ TEST(ClusterSplit, ABandRoundATubeIsCutAcrossNotAlongIt) {
         if (labels[n] != part) neighbours.insert(labels[n]);
     EXPECT_TRUE(neighbours.count(2) && neighbours.count(4)) << "part " << part << " touches both neighbouring bands";
   }
-  EXPECT_TRUE(clusters_connected(view, labels, 16));
+  EXPECT_TRUE(clusters_connected(view, labels, 11));
 }
 
 TEST(RepairLoop, ALensOnAFrontierIsDissolvedAndTheCountKept) {

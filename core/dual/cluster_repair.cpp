@@ -1,7 +1,7 @@
-// The repair's edits (core/dual/cluster_repair.h): split_cluster, two floods inside one label
-// (core/mesh/label_flood.h) from farthest-point seeds, and ClusterRepair::round, which splits the
-// defective clusters, dissolves islands and keeps the cluster count with merges of light pairs
-// far from any defect (link condition) or splits of heavy clusters.
+// The repair's round (core/dual/cluster_repair.h): ClusterRepair::round dissolves islands and
+// lenses, splits the other defective clusters (split_cluster, core/dual/cluster_split.cpp) and
+// keeps the cluster count with merges of light pairs far from any defect (link condition) or
+// splits of heavy clusters.
 #include "streamcvd/core/dual/cluster_repair.h"
 
 #include <tbb/blocked_range.h>
@@ -12,16 +12,10 @@
 #include <numeric>
 
 #include "streamcvd/core/dual/dual_topology.h"
-#include "streamcvd/core/mesh/label_flood.h"
 
 namespace streamcvd::detail {
 
 namespace {
-
-// Position of vertex v in the ascending member list of its cluster.
-uint32_t slot_of(std::span<const uint32_t> members, uint32_t v) {
-  return uint32_t(std::lower_bound(members.begin(), members.end(), v) - members.begin());
-}
 
 // Number of ids both sorted lists hold.
 size_t common_count(std::span<const int32_t> x, std::span<const int32_t> y) {
@@ -35,157 +29,6 @@ size_t common_count(std::span<const int32_t> x, std::span<const int32_t> y) {
 }
 
 }  // namespace
-
-namespace {
-
-// The members of cluster c next to another cluster, as (that cluster, member), sorted: runs of
-// one neighbour's frontier.
-std::vector<std::pair<int32_t, uint32_t>> frontier_contacts(const MeshView& mesh, std::span<const int32_t> labels,
-                                                            std::span<const uint32_t> members) {
-  const int32_t c = labels[members[0]];
-  std::vector<std::pair<int32_t, uint32_t>> contacts;
-  for (uint32_t v : members)
-    for (uint32_t n : mesh.neighbours(v))
-      if (labels[n] >= 0 && labels[n] != c) contacts.push_back({labels[n], v});
-  dual::sort_unique(contacts);
-  return contacts;
-}
-
-// The members on c's frontier with any other cluster, sorted.
-std::vector<uint32_t> frontier_members(std::span<const std::pair<int32_t, uint32_t>> contacts) {
-  std::vector<uint32_t> frontier;
-  for (const auto& [y, v] : contacts) frontier.push_back(v);
-  dual::sort_unique(frontier);
-  return frontier;
-}
-
-// The two largest connected parts (1-ring adjacency inside the cluster) of `vertices`, members
-// of the cluster, largest first: one when they are connected. O(Σ degree + cluster size).
-std::vector<std::vector<uint32_t>> two_largest_parts(const MeshView& mesh, std::span<const int32_t> labels,
-                                                     std::span<const uint32_t> members,
-                                                     std::span<const uint32_t> vertices, SplitScratch& scratch) {
-  const int32_t c = labels[members[0]];
-  auto slot = [&](uint32_t v) { return slot_of(members, v); };
-  scratch.stamp.assign(members.size(), 0);  // 1: in `vertices`, 2: reached
-  for (uint32_t v : vertices) scratch.stamp[slot(v)] = 1;
-  std::vector<std::vector<uint32_t>> parts;
-  for (uint32_t start : vertices) {
-    if (scratch.stamp[slot(start)] == 2) continue;
-    std::vector<uint32_t> part = {start};
-    scratch.stamp[slot(start)] = 2;
-    for (size_t h = 0; h < part.size(); ++h)
-      for (uint32_t n : mesh.neighbours(part[h]))
-        if (labels[n] == c && scratch.stamp[slot(n)] == 1) {
-          scratch.stamp[slot(n)] = 2;
-          part.push_back(n);
-        }
-    parts.push_back(std::move(part));
-  }
-  std::stable_sort(parts.begin(), parts.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
-  if (parts.size() > 2) parts.resize(2);
-  return parts;
-}
-
-// Seeds that cut a defective cluster where its dual vertex is not a disc, as two groups of
-// members, or nothing when its frontier is one arc per neighbour and one part in all.
-// - c meets a neighbour y along several arcs (the dual edge c–y has four faces): the two
-//   largest arcs. A farthest-point split cuts such a cluster along its length, and each half
-//   still meets y twice (dragon → 1000: the clusters at a tooth were halved 30 → 21 → 12 → 10
-//   members over four rounds before the defect went).
-// - c is a band (its frontier has several parts: a ring round a thin feature, two fans in the
-//   dual): two far-apart members of its largest frontier part, when the halves grown from them
-//   both reach both parts; grown from the parts themselves, the halves would be two bands
-//   again. Else nothing: on a band longer than it is round, the far end lies at equal hop
-//   distance from both seeds and goes to one half, and the farthest-point split cuts it along.
-std::vector<std::vector<uint32_t>> defect_cut_seeds(const MeshView& mesh, std::span<const int32_t> labels,
-                                                    std::span<const uint32_t> members, SplitScratch& scratch) {
-  const auto contacts = frontier_contacts(mesh, labels, members);
-  std::vector<uint32_t> arc;
-  for (size_t i = 0; i < contacts.size();) {
-    size_t j = i;
-    arc.clear();
-    while (j < contacts.size() && contacts[j].first == contacts[i].first) arc.push_back(contacts[j++].second);
-    i = j;
-    if (arc.size() < 2) continue;
-    auto arcs = two_largest_parts(mesh, labels, members, arc, scratch);
-    if (arcs.size() == 2) return arcs;
-  }
-  const auto parts = two_largest_parts(mesh, labels, members, frontier_members(contacts), scratch);
-  if (parts.size() < 2) return {};
-  // Two far-apart members of its largest part: the halves grown from them are kept when each
-  // reaches both parts (a cut across). Otherwise one half is a lens or a band again (elephant →
-  // 100: a 6-member half between two clusters, dissolved back, 40 rounds running).
-  const int32_t c = labels[members[0]];
-  auto slot = [&](uint32_t v) { return slot_of(members, v); };
-  std::vector<uint8_t> part_of(members.size(), 0);  // 1, 2: in that frontier part
-  for (uint8_t k = 0; k < 2; ++k)
-    for (uint32_t v : parts[k]) part_of[slot(v)] = uint8_t(k + 1);
-  const uint32_t from = parts[0][0];
-  scratch.stamp.assign(members.size(), 0);
-  flood_label(mesh, labels, c, {&from, 1}, slot, scratch.stamp, 1, scratch.queue, [](uint32_t, uint32_t) {});
-  uint32_t to = from;
-  for (auto it = scratch.queue.rbegin(); it != scratch.queue.rend() && to == from; ++it)
-    if (part_of[slot(*it)] == 1) to = *it;
-  if (to == from) return {};
-  std::vector<uint8_t> half(members.size(), 0);
-  const uint32_t seeds[2] = {from, to};
-  half[slot(from)] = 1;
-  half[slot(to)] = 2;
-  scratch.stamp.assign(members.size(), 0);
-  flood_label(mesh, labels, c, seeds, slot, scratch.stamp, 1, scratch.queue,
-              [&](uint32_t a, uint32_t v) { half[slot(v)] = half[slot(a)]; });
-  uint8_t reach[3] = {0, 0, 0};  // per half, bit k: reaches frontier part k + 1
-  for (size_t i = 0; i < members.size(); ++i)
-    if (part_of[i] != 0) reach[half[i]] |= uint8_t(1u << (part_of[i] - 1));
-  if (reach[1] == 3 && reach[2] == 3) return {{from}, {to}};
-  return {};
-}
-
-}  // namespace
-
-uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
-                       std::span<const int32_t> new_labels, SplitScratch& scratch, bool at_defect) {
-  if (members.size() < 2 || new_labels.empty()) return 0;
-  const int32_t c = labels[members[0]];
-  std::vector<uint32_t>& queue = scratch.queue;
-  auto slot = [&](uint32_t v) { return slot_of(members, v); };
-  if (at_defect) {
-    const std::vector<std::vector<uint32_t>> arcs = defect_cut_seeds(mesh, labels, members, scratch);
-    if (!arcs.empty()) {
-      // Two parts grown from the two arcs: each part keeps one of them.
-      scratch.stamp.assign(members.size(), 0);
-      std::vector<uint32_t> sources = arcs[0];
-      sources.insert(sources.end(), arcs[1].begin(), arcs[1].end());
-      for (uint32_t v : arcs[1]) labels[v] = new_labels[0];
-      flood_label(mesh, labels, c, sources, slot, scratch.stamp, 1, queue,
-                  [&](uint32_t from, uint32_t v) { labels[v] = labels[from]; });
-      return 1;
-    }
-  }
-  scratch.stamp.assign(members.size(), 0);
-  scratch.next_mark = 1;
-  // The member farthest (in hops inside c) from every source: the last one a flood reaches.
-  auto farthest = [&](std::span<const uint32_t> sources) {
-    flood_label(mesh, labels, c, sources, slot, scratch.stamp, scratch.next_mark++, queue, [](uint32_t, uint32_t) {});
-    return queue.back();
-  };
-  // Farthest-point seeds: the first is far from an arbitrary member, each next one is the
-  // member farthest from all seeds chosen so far.
-  std::vector<uint32_t> seeds;
-  const uint32_t first = members[0];
-  seeds.push_back(farthest({&first, 1}));
-  while (seeds.size() < new_labels.size() + 1 && seeds.size() < members.size()) {
-    const uint32_t s = farthest(seeds);
-    if (std::find(seeds.begin(), seeds.end(), s) != seeds.end()) break;
-    seeds.push_back(s);
-  }
-  if (seeds.size() < 2) return 0;
-  // Multi-source flood: each member joins the seed that reaches it first; every part connected.
-  for (size_t k = 1; k < seeds.size(); ++k) labels[seeds[k]] = new_labels[k - 1];
-  flood_label(mesh, labels, c, seeds, slot, scratch.stamp, scratch.next_mark++, queue,
-              [&](uint32_t from, uint32_t v) { labels[v] = labels[from]; });
-  return uint32_t(seeds.size() - 1);
-}
 
 ClusterRepair::ClusterRepair(const MeshView& mesh, const ItemData& items, LabelEditor& labels, uint32_t K,
                              std::span<const uint8_t> adjustable)
@@ -285,12 +128,7 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     // A band between its two neighbours (a ring round a tube) is cut across instead: merged,
     // its neighbour becomes the band (torus of 80 × 32, N = 20: every cluster a ring, and
     // merging them led to the last-resort face deletion).
-    const std::span<const uint32_t> own = members_of(c);
-    if (list.size() == 2 &&
-        two_largest_parts(mesh_, labels_.labels(), own, frontier_members(frontier_contacts(mesh_, labels_.labels(), own)),
-                          scratch_)
-                .size() > 1)
-      continue;
+    if (list.size() == 2 && !frontier_in_one_part(mesh_, labels_.labels(), members_of(c), scratch_)) continue;
     // An island joins the cluster round it (connected: it encloses it); a cluster between two
     // (a lens on their frontier, dragon → 1000: 1-vertex clusters after a split, whose two
     // neighbours were then halved round after round) joins the one it touches more.
@@ -301,6 +139,10 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
         if (it != list.end() && *it == labels_[n]) ++contacts[size_t(it - list.begin())];
       }
     const int32_t into = list[size_t(std::max_element(contacts.begin(), contacts.end()) - contacts.begin())];
+    // Once per cluster: a cluster dissolved into one that a later round splits again could be
+    // remade and dissolved for ever (dragon → 1000 at 2 threads: 40 rounds, a cap on a tube
+    // dissolved into the band below it and split off again). Past the first time, both split.
+    if (repaired_[c] || repaired_[into]) continue;
     for (uint32_t v : members_of(c)) labels_.set(v, into);
     free_ids.push_back(c);
     touched.push_back(into);

@@ -1,6 +1,6 @@
-// The edits of the repair loop (core/dual/repair.cpp): split_cluster, and ClusterRepair, one
-// round of splits, island dissolutions and compensating merges or splits over the clusters the
-// defect tracker (core/dual/defect_tracker.h) reports. Every label goes through the
+// The edits of the repair loop (core/dual/repair.cpp): split_cluster (cluster_split.cpp), and
+// ClusterRepair, one round of splits, island and lens dissolutions and compensating merges or
+// splits over the clusters the defect tracker (core/dual/defect_tracker.h) reports. Every label goes through the
 // LabelEditor (core/dual/repair_state.h). Internal to core/dual.
 #pragma once
 
@@ -34,6 +34,12 @@ struct SplitScratch {
 /// O(cluster size · parts · log cluster size); reads only the members and their 1-rings.
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
                        std::span<const int32_t> new_labels, SplitScratch& scratch, bool at_defect = false);
+
+/// True when the members of the cluster `members` (all, ascending) that touch another cluster
+/// form one connected part: a disc-like cluster, not a band round a thin feature.
+/// O(Σ degree · log) over the members.
+bool frontier_in_one_part(const MeshView& mesh, std::span<const int32_t> labels, std::span<const uint32_t> members,
+                          SplitScratch& scratch);
 
 /// One repair round at a time with state that persists across rounds: per-cluster weights and
 /// boundary contact (refreshed for the clusters whose members changed), and K-sized flag arrays

@@ -1,0 +1,266 @@
+// split_cluster (core/dual/cluster_repair.h): a cluster cut in parts grown inside its label
+// (core/mesh/label_flood.h), from farthest-point seeds or, at a defect, from the arcs or paths
+// that separate what makes its dual vertex not a disc.
+#include <algorithm>
+#include <iterator>
+#include <numeric>
+
+#include "streamcvd/core/dual/cluster_repair.h"
+#include "streamcvd/core/dual/dual_topology.h"
+#include "streamcvd/core/mesh/label_flood.h"
+
+namespace streamcvd::detail {
+
+namespace {
+
+// Position of vertex v in the ascending member list of its cluster.
+uint32_t slot_of(std::span<const uint32_t> members, uint32_t v) {
+  return uint32_t(std::lower_bound(members.begin(), members.end(), v) - members.begin());
+}
+
+// The members of cluster c next to another cluster, as (that cluster, member), sorted: runs of
+// one neighbour's frontier.
+std::vector<std::pair<int32_t, uint32_t>> frontier_contacts(const MeshView& mesh, std::span<const int32_t> labels,
+                                                            std::span<const uint32_t> members) {
+  const int32_t c = labels[members[0]];
+  std::vector<std::pair<int32_t, uint32_t>> contacts;
+  for (uint32_t v : members)
+    for (uint32_t n : mesh.neighbours(v))
+      if (labels[n] >= 0 && labels[n] != c) contacts.push_back({labels[n], v});
+  dual::sort_unique(contacts);
+  return contacts;
+}
+
+// The members on c's frontier with any other cluster, sorted.
+std::vector<uint32_t> frontier_members(std::span<const std::pair<int32_t, uint32_t>> contacts) {
+  std::vector<uint32_t> frontier;
+  for (const auto& [y, v] : contacts) frontier.push_back(v);
+  dual::sort_unique(frontier);
+  return frontier;
+}
+
+// The two largest connected parts (1-ring adjacency inside the cluster) of `vertices`, members
+// of the cluster, largest first: one when they are connected. O(Σ degree + cluster size).
+std::vector<std::vector<uint32_t>> two_largest_parts(const MeshView& mesh, std::span<const int32_t> labels,
+                                                     std::span<const uint32_t> members,
+                                                     std::span<const uint32_t> vertices, SplitScratch& scratch) {
+  const int32_t c = labels[members[0]];
+  auto slot = [&](uint32_t v) { return slot_of(members, v); };
+  scratch.stamp.assign(members.size(), 0);  // 1: in `vertices`, 2: reached
+  for (uint32_t v : vertices) scratch.stamp[slot(v)] = 1;
+  std::vector<std::vector<uint32_t>> parts;
+  for (uint32_t start : vertices) {
+    if (scratch.stamp[slot(start)] == 2) continue;
+    std::vector<uint32_t> part = {start};
+    scratch.stamp[slot(start)] = 2;
+    for (size_t h = 0; h < part.size(); ++h)
+      for (uint32_t n : mesh.neighbours(part[h]))
+        if (labels[n] == c && scratch.stamp[slot(n)] == 1) {
+          scratch.stamp[slot(n)] = 2;
+          part.push_back(n);
+        }
+    parts.push_back(std::move(part));
+  }
+  std::stable_sort(parts.begin(), parts.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  if (parts.size() > 2) parts.resize(2);
+  return parts;
+}
+
+// The arcs along which cluster c meets a neighbour y: the input edges from c to y, joined
+// when a triangle holds two of them (its corners labelled c and y only); a triangle with a
+// third cluster ends an arc. For the first neighbour met along two arcs or more, the members
+// of c on its two longest arcs (members on both left out); nothing when every neighbour is met
+// along one arc. Edge-based: in a small cluster the members on two arcs are often adjacent,
+// and their vertex sets then look like one arc. O(Σ degree · log) over the members.
+std::vector<std::vector<uint32_t>> two_longest_arcs(const MeshView& mesh, std::span<const int32_t> labels,
+                                                    std::span<const uint32_t> members) {
+  const int32_t c = labels[members[0]];
+  using Edge = std::pair<int32_t, uint64_t>;  // (y, member << 32 | vertex of y)
+  std::vector<Edge> edges;
+  for (uint32_t u : members)
+    for (uint32_t w : mesh.neighbours(u))
+      if (labels[w] >= 0 && labels[w] != c) edges.push_back({labels[w], uint64_t(u) << 32 | w});
+  dual::sort_unique(edges);
+  if (edges.size() < 2) return {};
+  std::vector<uint32_t> parent(edges.size());
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto find = [&](uint32_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  auto index_of = [&](int32_t y, uint32_t u, uint32_t w) {
+    return uint32_t(std::lower_bound(edges.begin(), edges.end(), Edge{y, uint64_t(u) << 32 | w}) - edges.begin());
+  };
+  for (uint32_t u : members)
+    for (uint32_t f : mesh.faces_of(u)) {
+      const uint32_t* t = &mesh.triangles[3 * size_t(f)];
+      int32_t y = -1;
+      bool two_labels = true;
+      for (int k = 0; k < 3; ++k) {
+        const int32_t l = labels[t[k]];
+        if (l == c) continue;
+        if (l < 0 || (y >= 0 && l != y)) two_labels = false;
+        y = l;
+      }
+      if (!two_labels || y < 0) continue;
+      // The face's two c–y edges.
+      uint32_t found[2], n = 0;
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t a = t[k], b = t[(k + 1) % 3];
+        if (labels[a] == c && labels[b] == y) found[n++] = index_of(y, a, b);
+        else if (labels[a] == y && labels[b] == c) found[n++] = index_of(y, b, a);
+      }
+      if (n == 2) parent[find(found[0])] = find(found[1]);
+    }
+  for (size_t i = 0; i < edges.size();) {
+    size_t j = i;
+    while (j < edges.size() && edges[j].first == edges[i].first) ++j;
+    // Edges per arc of this neighbour, by root.
+    std::vector<std::pair<uint32_t, uint32_t>> roots;  // (root, edge)
+    for (size_t e = i; e < j; ++e) roots.push_back({find(uint32_t(e)), uint32_t(e)});
+    std::sort(roots.begin(), roots.end());
+    std::vector<std::pair<size_t, size_t>> runs;  // (edge count, first index in roots)
+    for (size_t a = 0; a < roots.size();) {
+      size_t b = a;
+      while (b < roots.size() && roots[b].first == roots[a].first) ++b;
+      runs.push_back({b - a, a});
+      a = b;
+    }
+    i = j;
+    if (runs.size() < 2) continue;
+    std::stable_sort(runs.begin(), runs.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
+    std::vector<std::vector<uint32_t>> arcs(2);
+    for (int k = 0; k < 2; ++k) {
+      for (size_t r = runs[k].second; r < runs[k].second + runs[k].first; ++r)
+        arcs[k].push_back(uint32_t(edges[roots[r].second].second >> 32));
+      dual::sort_unique(arcs[k]);
+    }
+    std::vector<uint32_t> both;
+    std::set_intersection(arcs[0].begin(), arcs[0].end(), arcs[1].begin(), arcs[1].end(), std::back_inserter(both));
+    for (auto& arc : arcs) {
+      std::vector<uint32_t> only;
+      std::set_difference(arc.begin(), arc.end(), both.begin(), both.end(), std::back_inserter(only));
+      arc = std::move(only);
+    }
+    if (!arcs[0].empty() && !arcs[1].empty()) return arcs;
+  }
+  return {};
+}
+
+// Seeds that cut a defective cluster where its dual vertex is not a disc, as two groups of
+// members, or nothing when its frontier is one arc per neighbour and one part in all.
+// - c meets a neighbour y along several arcs (the dual edge c–y has four faces): the two
+//   largest arcs. A farthest-point split cuts such a cluster along its length, and each half
+//   still meets y twice (dragon → 1000: the clusters at a tooth were halved 30 → 21 → 12 → 10
+//   members over four rounds before the defect went).
+// - c is a band (its frontier has several parts: a ring round a thin feature, two fans in the
+//   dual): two paths across it, from one part to the other, on opposite sides; grown from the
+//   parts themselves, the halves would be two bands again (elephant → 100: a 6-member half
+//   between two clusters, dissolved back, 40 rounds running).
+std::vector<std::vector<uint32_t>> defect_cut_seeds(const MeshView& mesh, std::span<const int32_t> labels,
+                                                    std::span<const uint32_t> members, SplitScratch& scratch) {
+  const auto contacts = frontier_contacts(mesh, labels, members);
+  std::vector<std::vector<uint32_t>> arcs = two_longest_arcs(mesh, labels, members);
+  if (!arcs.empty()) return arcs;
+  const auto parts = two_largest_parts(mesh, labels, members, frontier_members(contacts), scratch);
+  if (parts.size() < 2) return {};
+  // Two paths across the band, from its largest frontier part to the other: the shortest one,
+  // and the shortest from the member of the first part farthest from it, kept apart from it.
+  // Halves grown from the paths each hold one, so each reaches both parts: a cut across.
+  // (Halves grown from two far-apart points of one part need not: the far end of a band
+  // longer than it is round lies at equal hop distance from both and goes to one of them.)
+  const int32_t c = labels[members[0]];
+  auto slot = [&](uint32_t v) { return slot_of(members, v); };
+  std::vector<uint8_t> part_of(members.size(), 0);  // 1, 2: in that frontier part
+  for (uint8_t k = 0; k < 2; ++k)
+    for (uint32_t v : parts[k]) part_of[slot(v)] = uint8_t(k + 1);
+  std::vector<uint32_t> parent(members.size(), UINT32_MAX);
+  // The shortest path (BFS inside c, avoiding the members stamped 1 in scratch.stamp) from
+  // `sources` to frontier part 2, from its part-2 end back to a source; empty when none.
+  auto path_to_part2 = [&](std::span<const uint32_t> sources) {
+    for (uint32_t v : sources) parent[slot(v)] = UINT32_MAX;
+    flood_label(mesh, labels, c, sources, slot, scratch.stamp, 1, scratch.queue,
+                [&](uint32_t from, uint32_t v) { parent[slot(v)] = from; });
+    std::vector<uint32_t> path;
+    for (uint32_t v : scratch.queue)
+      if (part_of[slot(v)] == 2) {
+        for (uint32_t x = v; x != UINT32_MAX; x = parent[slot(x)]) path.push_back(x);
+        break;
+      }
+    return path;
+  };
+  scratch.stamp.assign(members.size(), 0);
+  const std::vector<uint32_t> first = path_to_part2(parts[0]);
+  if (first.empty()) return {};
+  // The member of the first part farthest from that path, and the path from it that avoids it.
+  scratch.stamp.assign(members.size(), 0);
+  flood_label(mesh, labels, c, first, slot, scratch.stamp, 1, scratch.queue, [](uint32_t, uint32_t) {});
+  uint32_t far = UINT32_MAX;
+  for (auto it = scratch.queue.rbegin(); it != scratch.queue.rend() && far == UINT32_MAX; ++it)
+    if (part_of[slot(*it)] == 1) far = *it;
+  if (far == UINT32_MAX || std::find(first.begin(), first.end(), far) != first.end()) return {};
+  scratch.stamp.assign(members.size(), 0);
+  for (uint32_t v : first) scratch.stamp[slot(v)] = 1;
+  // Nor next to it: halves that touch along a path's length would not part the band there.
+  for (uint32_t v : first)
+    for (uint32_t n : mesh.neighbours(v))
+      if (labels[n] == c && n != far) scratch.stamp[slot(n)] = 1;
+  if (scratch.stamp[slot(far)] != 0) return {};
+  const std::vector<uint32_t> second = path_to_part2({&far, 1});
+  if (second.empty()) return {};
+  return {first, second};
+}
+
+}  // namespace
+
+uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
+                       std::span<const int32_t> new_labels, SplitScratch& scratch, bool at_defect) {
+  if (members.size() < 2 || new_labels.empty()) return 0;
+  const int32_t c = labels[members[0]];
+  std::vector<uint32_t>& queue = scratch.queue;
+  auto slot = [&](uint32_t v) { return slot_of(members, v); };
+  if (at_defect) {
+    const std::vector<std::vector<uint32_t>> arcs = defect_cut_seeds(mesh, labels, members, scratch);
+    if (!arcs.empty()) {
+      // Two parts grown from the two arcs: each part keeps one of them.
+      scratch.stamp.assign(members.size(), 0);
+      std::vector<uint32_t> sources = arcs[0];
+      sources.insert(sources.end(), arcs[1].begin(), arcs[1].end());
+      for (uint32_t v : arcs[1]) labels[v] = new_labels[0];
+      flood_label(mesh, labels, c, sources, slot, scratch.stamp, 1, queue,
+                  [&](uint32_t from, uint32_t v) { labels[v] = labels[from]; });
+      return 1;
+    }
+  }
+  scratch.stamp.assign(members.size(), 0);
+  scratch.next_mark = 1;
+  // The member farthest (in hops inside c) from every source: the last one a flood reaches.
+  auto farthest = [&](std::span<const uint32_t> sources) {
+    flood_label(mesh, labels, c, sources, slot, scratch.stamp, scratch.next_mark++, queue, [](uint32_t, uint32_t) {});
+    return queue.back();
+  };
+  // Farthest-point seeds: the first is far from an arbitrary member, each next one is the
+  // member farthest from all seeds chosen so far.
+  std::vector<uint32_t> seeds;
+  const uint32_t first = members[0];
+  seeds.push_back(farthest({&first, 1}));
+  while (seeds.size() < new_labels.size() + 1 && seeds.size() < members.size()) {
+    const uint32_t s = farthest(seeds);
+    if (std::find(seeds.begin(), seeds.end(), s) != seeds.end()) break;
+    seeds.push_back(s);
+  }
+  if (seeds.size() < 2) return 0;
+  // Multi-source flood: each member joins the seed that reaches it first; every part connected.
+  for (size_t k = 1; k < seeds.size(); ++k) labels[seeds[k]] = new_labels[k - 1];
+  flood_label(mesh, labels, c, seeds, slot, scratch.stamp, scratch.next_mark++, queue,
+              [&](uint32_t from, uint32_t v) { labels[v] = labels[from]; });
+  return uint32_t(seeds.size() - 1);
+}
+
+bool frontier_in_one_part(const MeshView& mesh, std::span<const int32_t> labels, std::span<const uint32_t> members,
+                          SplitScratch& scratch) {
+  return two_largest_parts(mesh, labels, members, frontier_members(frontier_contacts(mesh, labels, members)), scratch)
+             .size() < 2;
+}
+
+}  // namespace streamcvd::detail

@@ -135,13 +135,17 @@ std::vector<std::vector<uint32_t>> two_longest_arcs(const MeshView& mesh, std::s
         arcs[k].push_back(uint32_t(edges[roots[r].second].second >> 32));
       dual::sort_unique(arcs[k]);
     }
-    std::vector<uint32_t> both;
+    // Members on both arcs (a pinch: the two arcs meet at one member of c) go to one of them:
+    // to the longer arc, unless the other would be left with none.
+    std::vector<uint32_t> both, only[2];
     std::set_intersection(arcs[0].begin(), arcs[0].end(), arcs[1].begin(), arcs[1].end(), std::back_inserter(both));
-    for (auto& arc : arcs) {
-      std::vector<uint32_t> only;
-      std::set_difference(arc.begin(), arc.end(), both.begin(), both.end(), std::back_inserter(only));
-      arc = std::move(only);
-    }
+    for (int k = 0; k < 2; ++k)
+      std::set_difference(arcs[k].begin(), arcs[k].end(), both.begin(), both.end(), std::back_inserter(only[k]));
+    if (only[0].empty() && only[1].empty()) continue;
+    const int to = only[1].empty() ? 1 : 0;
+    arcs[to] = std::move(only[to]);
+    arcs[to].insert(arcs[to].end(), both.begin(), both.end());
+    arcs[1 - to] = std::move(only[1 - to]);
     if (!arcs[0].empty() && !arcs[1].empty()) return arcs;
   }
   return {};
@@ -199,16 +203,21 @@ std::vector<std::vector<uint32_t>> defect_cut_seeds(const MeshView& mesh, std::s
   for (auto it = scratch.queue.rbegin(); it != scratch.queue.rend() && far == UINT32_MAX; ++it)
     if (part_of[slot(*it)] == 1) far = *it;
   if (far == UINT32_MAX || std::find(first.begin(), first.end(), far) != first.end()) return {};
-  scratch.stamp.assign(members.size(), 0);
-  for (uint32_t v : first) scratch.stamp[slot(v)] = 1;
-  // Nor next to it: halves that touch along a path's length would not part the band there.
-  for (uint32_t v : first)
-    for (uint32_t n : mesh.neighbours(v))
-      if (labels[n] == c && n != far) scratch.stamp[slot(n)] = 1;
-  if (scratch.stamp[slot(far)] != 0) return {};
-  const std::vector<uint32_t> second = path_to_part2({&far, 1});
-  if (second.empty()) return {};
-  return {first, second};
+  // Preferably not next to it either (halves that touch along a path's length do not part the
+  // band there); in a band a few members wide, through the first path's neighbours; failing
+  // that, the second half grows from the far member alone.
+  for (const bool clear_of_neighbours : {true, false}) {
+    scratch.stamp.assign(members.size(), 0);
+    for (uint32_t v : first) {
+      scratch.stamp[slot(v)] = 1;
+      if (clear_of_neighbours)
+        for (uint32_t n : mesh.neighbours(v))
+          if (labels[n] == c && n != far) scratch.stamp[slot(n)] = 1;
+    }
+    const std::vector<uint32_t> second = path_to_part2({&far, 1});
+    if (!second.empty()) return {first, second};
+  }
+  return {first, {far}};
 }
 
 }  // namespace

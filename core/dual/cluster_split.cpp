@@ -69,9 +69,9 @@ std::vector<std::vector<uint32_t>> two_largest_parts(const MeshView& mesh, std::
 // The arcs along which cluster c meets a neighbour y: the input edges from c to y, joined
 // when a triangle holds two of them (its corners labelled c and y only); a triangle with a
 // third cluster ends an arc. For the first neighbour met along two arcs or more, the members
-// of c on its two longest arcs (members on both left out); nothing when every neighbour is met
-// along one arc. Edge-based: in a small cluster the members on two arcs are often adjacent,
-// and their vertex sets then look like one arc. O(Σ degree · log) over the members.
+// of c on its two longest arcs (a member on both given to one); nothing when every neighbour
+// is met along one arc. Edge-based: in a small cluster the members on two arcs are often
+// adjacent, and their vertex sets then look like one arc. O(Σ degree · log) over the members.
 std::vector<std::vector<uint32_t>> two_longest_arcs(const MeshView& mesh, std::span<const int32_t> labels,
                                                     std::span<const uint32_t> members) {
   const int32_t c = labels[members[0]];
@@ -231,7 +231,7 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
   if (at_defect) {
     const std::vector<std::vector<uint32_t>> arcs = defect_cut_seeds(mesh, labels, members, scratch);
     if (!arcs.empty()) {
-      // Two parts grown from the two arcs: each part keeps one of them.
+      // Two parts grown from the two groups (arcs or paths): each part keeps one of them.
       scratch.stamp.assign(members.size(), 0);
       std::vector<uint32_t> sources = arcs[0];
       sources.insert(sources.end(), arcs[1].begin(), arcs[1].end());

@@ -3,6 +3,9 @@
 // nearly every binary PLY: "float x y z" vertices (one memcpy per block) and "uchar count +
 // int/uint indices" faces (a run copy, then one range test per triangle).
 #include <fcntl.h>
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -337,6 +340,55 @@ struct BinaryReader {
 
 }  // namespace
 
+namespace {
+
+/// Bounds and position sample of one block of the prescan (vertices [first, first + n)).
+struct PrescanBlock {
+  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  std::vector<float> sample;
+  bool ok = true;
+};
+
+// Reads block `b` (per_block vertices of `stride` bytes from byte `offset` of fd) into `buffer`
+// and measures it: finite coordinates grow the bounds, every sample_stride-th vertex joins the
+// sample. The packed "float x y z" layout skips the per-scalar type switch.
+void prescan_block(int fd, uint64_t offset, uint64_t count, size_t stride, size_t per_block, const Field* axis,
+                   bool swap, uint64_t sample_stride, uint64_t b, std::vector<char>& buffer, PrescanBlock& out) {
+  const uint64_t first = b * per_block;
+  const size_t n = size_t(std::min<uint64_t>(per_block, count - first)), bytes = n * stride;
+  buffer.resize(per_block * stride);
+  for (size_t got = 0; got < bytes;) {
+    const ssize_t r = ::pread(fd, buffer.data() + got, bytes - got, off_t(offset + first * stride + got));
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) {
+      out.ok = false;
+      return;
+    }
+    got += size_t(r);
+  }
+  const bool packed = !swap && stride == 12 && axis[0].type == Scalar::F32 && axis[1].type == Scalar::F32 &&
+                      axis[2].type == Scalar::F32 && axis[0].offset == 0 && axis[1].offset == 4 && axis[2].offset == 8;
+  const char* src = buffer.data();
+  for (size_t i = 0; i < n; ++i, src += stride) {
+    float p[3];
+    if (packed) {
+      std::memcpy(p, src, 12);
+    } else {
+      for (int a = 0; a < 3; ++a) p[a] = load_float(src + axis[a].offset, axis[a].type, swap);
+    }
+    for (int a = 0; a < 3; ++a)
+      if (std::isfinite(p[a])) out.lo[a] = std::min(out.lo[a], p[a]), out.hi[a] = std::max(out.hi[a], p[a]);
+  }
+  // The sample's ids are multiples of sample_stride: the first at or after `first`.
+  for (uint64_t v = (first + sample_stride - 1) / sample_stride * sample_stride; v < first + n; v += sample_stride) {
+    float p[3];
+    for (int a = 0; a < 3; ++a) p[a] = load_float(buffer.data() + (v - first) * stride + axis[a].offset, axis[a].type, swap);
+    out.sample.insert(out.sample.end(), p, p + 3);
+  }
+}
+
+}  // namespace
+
 void prescan_vertex_bounds(InputStream& in, const Header& h, BlockEmitter& out) {
   if (in.compressed() || in.file_size() == 0 || in.path() == "stdin" || in.path() == "-") return;
   uint64_t offset = in.offset();  // uncompressed: bytes of the file consumed by the header
@@ -363,36 +415,26 @@ void prescan_vertex_bounds(InputStream& in, const Header& h, BlockEmitter& out) 
   MeshHeaderInfo& info = out.header();
   uint64_t sample_stride = 1;
   while (e.count / sample_stride > (uint64_t(1) << 17)) sample_stride *= 2;
-  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  std::vector<float> sample;
-  const size_t per_read = std::max<size_t>(1, (size_t(8) << 20) / stride);
-  std::vector<char> buffer(per_read * stride);
-  bool ok = true;
-  for (uint64_t v = 0; v < e.count && ok;) {
-    const size_t n = size_t(std::min<uint64_t>(per_read, e.count - v)), bytes = n * stride;
-    for (size_t got = 0; got < bytes;) {
-      const ssize_t r = ::pread(fd, buffer.data() + got, bytes - got, off_t(offset + v * stride + got));
-      if (r < 0 && errno == EINTR) continue;
-      if (r <= 0) {
-        ok = false;
-        break;
-      }
-      got += size_t(r);
-    }
-    const char* src = buffer.data();
-    for (size_t i = 0; ok && i < n; ++i, src += stride) {
-      float p[3];
-      for (int a = 0; a < 3; ++a) {
-        p[a] = load_float(src + axis[a].offset, axis[a].type, swap);
-        if (std::isfinite(p[a])) lo[a] = std::min(lo[a], p[a]), hi[a] = std::max(hi[a], p[a]);
-      }
-      if ((v + i) % sample_stride == 0) sample.insert(sample.end(), p, p + 3);
-    }
-    v += n;
-  }
+  // Blocks of ~4 MiB measured in parallel: this pass runs before any other work starts (the
+  // whole build waits for it), so it uses every core. Bounds are combined and samples
+  // concatenated in block order: the same result whatever the threads.
+  const size_t per_block = std::max<size_t>(1, (size_t(4) << 20) / stride);
+  const uint64_t blocks = (e.count + per_block - 1) / per_block;
+  std::vector<PrescanBlock> parts(blocks);
+  tbb::enumerable_thread_specific<std::vector<char>> buffers;
+  tbb::parallel_for(tbb::blocked_range<uint64_t>(0, blocks, 1), [&](const tbb::blocked_range<uint64_t>& r) {
+    for (uint64_t b = r.begin(); b != r.end(); ++b)
+      prescan_block(fd, offset, e.count, stride, per_block, axis, swap, sample_stride, b, buffers.local(), parts[b]);
+  });
   ::posix_fadvise(fd, off_t(offset), off_t(e.count * stride), POSIX_FADV_DONTNEED);
   ::close(fd);
-  if (!ok) return;
+  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  std::vector<float> sample;
+  for (const PrescanBlock& part : parts) {
+    if (!part.ok) return;
+    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], part.lo[a]), hi[a] = std::max(hi[a], part.hi[a]);
+    sample.insert(sample.end(), part.sample.begin(), part.sample.end());
+  }
   info.has_bounds = true;
   std::copy(lo, lo + 3, info.bounds_lo);
   std::copy(hi, hi + 3, info.bounds_hi);

@@ -137,10 +137,16 @@ void add_block_boxes(std::vector<float>& boxes, uint64_t first, std::span<const 
   const uint64_t n = xyz.size() / 3, last_block = (first + n + kBlock - 1) / kBlock;
   constexpr float inf = std::numeric_limits<float>::infinity();
   while (boxes.size() < 6 * last_block) boxes.insert(boxes.end(), {inf, inf, inf, -inf, -inf, -inf});
-  for (uint64_t i = 0; i < n; ++i) {
-    float* box = &boxes[6 * ((first + i) / kBlock)];
-    for (int k = 0; k < 3; ++k) box[k] = std::min(box[k], xyz[3 * i + k]), box[3 + k] = std::max(box[3 + k], xyz[3 * i + k]);
-  }
+  // One task per run of box blocks (each block's vertices in order, as a serial loop would):
+  // this runs between the buckets' parallel sorts, where a serial loop leaves a core idle.
+  tbb::parallel_for(tbb::blocked_range<uint64_t>(first / kBlock, last_block, 16), [&](const tbb::blocked_range<uint64_t>& r) {
+    for (uint64_t b = r.begin(); b != r.end(); ++b) {
+      float* box = &boxes[6 * b];
+      const uint64_t i0 = std::max(b * kBlock, first) - first, i1 = std::min((b + 1) * kBlock, first + n) - first;
+      for (uint64_t i = i0; i < i1; ++i)
+        for (int k = 0; k < 3; ++k) box[k] = std::min(box[k], xyz[3 * i + k]), box[3 + k] = std::max(box[3 + k], xyz[3 * i + k]);
+    }
+  });
 }
 
 }  // namespace

@@ -44,12 +44,32 @@ void StoreBuilder::State::begin_faces() {
 }
 
 void StoreBuilder::State::add_faces(std::span<const uint32_t> corners) {
+  const size_t n = corners.size() / 3;
+  if (face_count + face_batch.size() / 3 + n > std::numeric_limits<uint32_t>::max())
+    throw InputError("store build: more than 2^32-1 faces");
+  // The reader's blocks (64K faces) are batched: a batch is enough work for every thread in
+  // the remap and the bucketing below, where a block kept the building thread busy with a
+  // serial loop of one append per face while the other threads waited.
+  if (face_batch.empty() && n >= kFaceBatch) return remap_faces(corners);
+  const size_t old = face_batch.size();
+  face_batch.resize(old + 3 * n);
+  std::copy(corners.begin(), corners.begin() + 3 * n, face_batch.begin() + old);
+  if (face_batch.size() / 3 >= kFaceBatch) flush_faces();
+}
+
+void StoreBuilder::State::flush_faces() {
+  if (face_batch.empty()) return;
+  remap_faces(face_batch);
+  face_batch.clear();
+}
+
+// Faces face_count, face_count + 1, ... (file order): corners remapped to store ids, each face
+// to the bucket of its owner's vertex range, in file order within a bucket.
+void StoreBuilder::State::remap_faces(std::span<const uint32_t> corners) {
   const auto t0 = std::chrono::steady_clock::now();
   const size_t n = corners.size() / 3;
-  if (face_count + n > std::numeric_limits<uint32_t>::max())
-    throw InputError("store build: more than 2^32-1 faces");
-  remapped.resize(4 * n);  // 3 new corners, then the face's range
-  uint32_t* range_of = remapped.data() + 3 * n;
+  remapped.resize(3 * n);
+  face_range.resize(n);
   const uint64_t limit = input_vertices;
   const size_t bad = tbb::parallel_reduce(
       tbb::blocked_range<size_t>(0, n, 4096), n,
@@ -62,7 +82,7 @@ void StoreBuilder::State::add_faces(std::span<const uint32_t> corners) {
           }
           const uint32_t na = new_of_old[a], nb = new_of_old[b], nc = new_of_old[c];
           remapped[3 * i] = na, remapped[3 * i + 1] = nb, remapped[3 * i + 2] = nc;
-          range_of[i] = std::min({na, nb, nc}) / range_width;
+          face_range[i] = std::min({na, nb, nc}) / range_width;
         }
         return first_bad;
       },
@@ -73,7 +93,17 @@ void StoreBuilder::State::add_faces(std::span<const uint32_t> corners) {
     throw InputError("store build: face " + std::to_string(face_count + bad) + " uses vertex " + std::to_string(v) +
                      " of " + std::to_string(limit));
   }
-  for (size_t i = 0; i < n; ++i) owned_faces->append(range_of[i], &remapped[3 * i]);
+  // Grouped by range (a stable counting sort: file order within a range), then one append of
+  // consecutive records per range.
+  face_staging.resize(3 * n);
+  counting_sort(
+      n, owned_faces->bucket_count(), [&](uint64_t i) { return face_range[i]; }, face_range_start,
+      [&](uint64_t i, uint32_t at) {
+        for (int k = 0; k < 3; ++k) face_staging[3 * size_t(at) + k] = remapped[3 * i + k];
+      });
+  for (uint32_t b = 0; b < owned_faces->bucket_count(); ++b)
+    if (face_range_start[b + 1] > face_range_start[b])
+      owned_faces->append(b, &face_staging[3 * size_t(face_range_start[b])], face_range_start[b + 1] - face_range_start[b]);
   face_count += n;
   result.report.faces_seconds += seconds_since(t0);
   report("faces", face_count, header.faces != MeshHeaderInfo::kUnknown ? header.faces : 0, "faces");  // 0: unknown
@@ -81,8 +111,9 @@ void StoreBuilder::State::add_faces(std::span<const uint32_t> corners) {
 
 void StoreBuilder::State::finish_faces() {
   if (!owned_faces) begin_faces();  // no face at all
+  flush_faces();
   DefaultInitVector<uint32_t>().swap(new_of_old);
-  DefaultInitVector<uint32_t>().swap(remapped);
+  for (auto* v : {&face_batch, &remapped, &face_range, &face_staging, &face_range_start}) DefaultInitVector<uint32_t>().swap(*v);
   result.face_count = face_count;
 }
 

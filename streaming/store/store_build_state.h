@@ -83,7 +83,9 @@ struct StoreBuilder::State {
   uint64_t vertex_key(uint64_t id, const float* p) const;
   void order_vertices();                             // pass 2
   void begin_faces();                                // pass 3
-  void add_faces(std::span<const uint32_t> corners);  // pass 3, one block in file order
+  void add_faces(std::span<const uint32_t> corners);  // pass 3, one block in file order (batched)
+  void flush_faces();                                // pass 3: the batch so far
+  void remap_faces(std::span<const uint32_t> corners);  // pass 3: remap and bucket a batch
   void finish_faces();                               // pass 3
   void build_ranges();                               // pass 4
   void finish_result();
@@ -145,7 +147,10 @@ struct StoreBuilder::State {
   // Pass 3: faces by owner range.
   uint32_t range_width = 1, range_count = 0;
   std::unique_ptr<SpillBuckets> owned_faces;
-  DefaultInitVector<uint32_t> remapped;    ///< scratch of add_faces
+  /// Faces per remap_faces() call (3 MiB of corners): two counting-sort parts and 64 remap tasks.
+  static constexpr size_t kFaceBatch = size_t(1) << 18;
+  DefaultInitVector<uint32_t> face_batch;  ///< corners of the reader's blocks not yet remapped
+  DefaultInitVector<uint32_t> remapped, face_range, face_staging, face_range_start;  ///< scratch of remap_faces
   uint64_t face_count = 0;
 
   StoreBuildResult result;

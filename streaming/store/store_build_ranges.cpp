@@ -12,6 +12,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdio>
 #include <cstdlib>
 #include <future>
@@ -229,11 +230,17 @@ void RangePass::sort_owned(uint32_t r, const RangeInput& in) {
   a_->tri.resize(3 * (foreign_count_ + m));
   uint32_t* owned = a_->tri.data() + 3 * foreign_count_;
   const uint32_t vb = vb_;
+  // The screen's count of faces with a repeated index is taken here, where each owned face
+  // passes once with its corners at hand, instead of in a second walk over the owned faces.
+  std::atomic<uint64_t> repeated{0};
   counting_sort(
       m, n_, [&](uint64_t i) { return std::min({f[3 * i], f[3 * i + 1], f[3 * i + 2]}) - vb; }, owned_start_,
       [&](uint64_t i, uint32_t at) {
-        for (int k = 0; k < 3; ++k) owned[3 * size_t(at) + k] = f[3 * i + k];
+        const uint32_t a = f[3 * i], b = f[3 * i + 1], c = f[3 * i + 2];
+        owned[3 * size_t(at)] = a, owned[3 * size_t(at) + 1] = b, owned[3 * size_t(at) + 2] = c;
+        if (topology::repeated_index(a, b, c)) [[unlikely]] repeated.fetch_add(1, std::memory_order_relaxed);
       });
+  s_.result.report.screen.repeated_index_faces += repeated.load();
   const ForeignFace* foreign = reinterpret_cast<const ForeignFace*>(foreign_in_.data());
   tbb::parallel_for(tbb::blocked_range<uint64_t>(0, foreign_count_, 1 << 14), [&](const tbb::blocked_range<uint64_t>& q) {
     for (uint64_t i = q.begin(); i != q.end(); ++i)
@@ -288,23 +295,20 @@ void RangePass::local_adjacency(uint32_t) {
 }
 
 // The cleaning's screen over the range (StoreBuildReport::TopologyScreen), from what the
-// adjacency pass has just built: its flagged vertices, its faces with a repeated index, and
-// its isolated twins. A duplicate face anywhere else puts a third face on one of its edges or
+// adjacency pass has just built: its flagged vertices and its isolated twins (its faces with a
+// repeated index are counted by sort_owned). A duplicate face anywhere else puts a third face on one of its edges or
 // a second fan at one of its corners, so the flags show it; only a face and its twin alone
 // (each corner with exactly those two faces) need a look. Exact for any(): O(faces) compares
 // and O(n) flag reads, no sort. Runs before the face lists are turned into face ids.
 void RangePass::screen_topology() {
   using Screen = StoreBuildReport::TopologyScreen;
   const uint32_t* tri = a_->tri.data();
-  const uint32_t* owned = tri + 3 * foreign_count_;
   auto corners = [&](uint32_t f) { return topology::vertex_set(tri[3 * f], tri[3 * f + 1], tri[3 * f + 2]); };
   const Screen found = tbb::parallel_reduce(
       tbb::blocked_range<uint32_t>(0, n_, 1 << 14), Screen{},
       [&](const tbb::blocked_range<uint32_t>& q, Screen sc) {
         for (uint32_t v = q.begin(); v != q.end(); ++v) {
           sc.nonmanifold_vertices += (a_->flags[v] & kVertexNonManifold) != 0;
-          for (uint64_t i = owned_start_[v]; i != owned_start_[v + 1]; ++i)
-            sc.repeated_index_faces += topology::repeated_index(owned[3 * i], owned[3 * i + 1], owned[3 * i + 2]);
           if (a_->vf_off[v + 1] - a_->vf_off[v] != 2) continue;
           const uint32_t f = a_->vf[a_->vf_off[v]], g = a_->vf[a_->vf_off[v] + 1];
           // Counted once, at the pair's owner (its smallest corner), when both faces are owned here.
@@ -321,7 +325,6 @@ void RangePass::screen_topology() {
   Screen& total = s_.result.report.screen;
   total.nonmanifold_vertices += found.nonmanifold_vertices;
   total.isolated_twin_faces += found.isolated_twin_faces;
-  total.repeated_index_faces += found.repeated_index_faces;
 }
 
 // Appends one range's arrays to the outputs (on the writer thread), offsets made global.

@@ -49,7 +49,7 @@ run_ingest() {
   local wall user sys peak in_bytes
   read -r wall user sys <"$work/time"
   peak=$(sed -n 's/.*peak \([^,]*\),.*/\1/p' "$work/err")
-  in_bytes=$(stat -c %s "$input")
+  in_bytes=$(stat -L -c %s "$input")  # -L: an input may be a symlink to a shared copy
   awk -v n="$name" -v ib="$in_bytes" -v w="$wall" -v u="$user" -v s="$sys" -v pk="${peak:-n/a}" -v ld="$load" \
       -v lim="$MEMLIMIT" -v extra="$*" 'BEGIN {
     printf "%-7s %-14s input %8.1f MB  wall %6.2f s  cpu %6.2f s (user %6.2f + sys %5.2f, load %4.2f)  %6.1f MB/s  cgroup %s peak %s\n",

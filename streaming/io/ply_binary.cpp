@@ -338,10 +338,6 @@ struct BinaryReader {
   }
 };
 
-}  // namespace
-
-namespace {
-
 /// Bounds and position sample of one block of the prescan (vertices [first, first + n)).
 struct PrescanBlock {
   float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};

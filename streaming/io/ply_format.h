@@ -58,10 +58,10 @@ struct Header {
 /// without vertices, or one with no element readable as faces (naming the elements found).
 Header parse_header(InputStream& in, const ReadOptions& options, BlockEmitter& out);
 /// Binary PLY from a regular uncompressed file whose vertex element has fixed-size records at a
-/// known offset: reads that element once ahead (pread on its own descriptor, blocks in parallel:
-/// the build waits for it) for its bounds and
-/// a position sample (MeshHeaderInfo::has_bounds). Best effort: anything unusual skips it, and
-/// the streamed read then reports every problem as usual. O(vertex element bytes).
+/// known offset: reads that element once ahead (pread on its own descriptor, blocks in
+/// parallel: the build waits for it) for its bounds and a position sample
+/// (MeshHeaderInfo::has_bounds). Best effort: anything unusual skips it, and the streamed read
+/// then reports every problem as usual. O(vertex element bytes).
 void prescan_vertex_bounds(InputStream& in, const Header& h, BlockEmitter& out);
 /// Fails fast when the header promises more records than the rest of an uncompressed file can
 /// hold (e.g. "element vertex 4000000000" in a 100-byte file), before reading the body.

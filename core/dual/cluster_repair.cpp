@@ -33,7 +33,7 @@ size_t common_count(std::span<const int32_t> x, std::span<const int32_t> y) {
 ClusterRepair::ClusterRepair(const MeshView& mesh, const ItemData& items, LabelEditor& labels, uint32_t K,
                              std::span<const uint8_t> adjustable)
     : mesh_(mesh), items_(items), labels_(labels), K_(K), adjustable_(adjustable), weight_(K, 0.0),
-      touches_boundary_(K, 0), repaired_(K, 0), is_defect_(K), near_(K), used_(K), beside_merge_(K), partner_(K, -1) {
+      touches_boundary_(K, 0), repaired_(K, 0), is_defect_(K), near_(K), used_(K), beside_merge_(K), spared_(K), partner_(K, -1) {
   std::vector<int32_t> all(K);
   std::iota(all.begin(), all.end(), 0);
   refresh(all);
@@ -118,13 +118,16 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
   std::vector<int32_t> to_split;
   // Clusters with one or two neighbours go first: their dual vertex has one face or two on the
   // same three vertices, whatever its shape, and their neighbours' defects are theirs.
-  std::vector<int32_t> spared;  // neighbours of a dissolved cluster: not split this round
+  // spared_: dissolved clusters and their neighbours, not split this round.
   std::vector<size_t> contacts;
   for (size_t i = 0; i < defects.size(); ++i) {
     const int32_t c = defects[i];
     const auto& list = neighbours_of_defect[i];
     if (touches_boundary_[c] || list.empty() || list.size() > 2) continue;
-    if (std::binary_search(spared.begin(), spared.end(), c)) continue;
+    // Once per cluster: a cluster dissolved into one that a later round splits again could be
+    // remade and dissolved for ever (dragon → 1000 at 2 threads: 40 rounds, a cap on a tube
+    // dissolved into the band below it and split off again). Past the first time, both split.
+    if (repaired_[c] || spared_.contains(c)) continue;
     // A band between its two neighbours (a ring round a tube) is cut across instead: merged,
     // its neighbour becomes the band (torus of 80 × 32, N = 20: every cluster a ring, and
     // merging them led to the last-resort face deletion).
@@ -139,20 +142,17 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
         if (it != list.end() && *it == labels_[n]) ++contacts[size_t(it - list.begin())];
       }
     const int32_t into = list[size_t(std::max_element(contacts.begin(), contacts.end()) - contacts.begin())];
-    // Once per cluster: a cluster dissolved into one that a later round splits again could be
-    // remade and dissolved for ever (dragon → 1000 at 2 threads: 40 rounds, a cap on a tube
-    // dissolved into the band below it and split off again). Past the first time, both split.
-    if (repaired_[c] || repaired_[into]) continue;
+    if (repaired_[into]) continue;
     for (uint32_t v : members_of(c)) labels_.set(v, into);
     free_ids.push_back(c);
     touched.push_back(into);
     ++stats.dissolved_islands;
-    spared.insert(spared.end(), list.begin(), list.end());
-    spared.push_back(c);
-    dual::sort_unique(spared);
+    spared_.insert(c);
+    for (int32_t n : list) spared_.insert(n);
   }
   for (int32_t c : defects)
-    if (!std::binary_search(spared.begin(), spared.end(), c) && size_of(c) >= 2) to_split.push_back(c);
+    if (!spared_.contains(c) && size_of(c) >= 2) to_split.push_back(c);
+  spared_.clear();
   // More clusters asked for: empty ids become free ones, which the heaviest clusters take below.
   {
     const size_t freed = free_ids.size();  // the dissolved islands' ids

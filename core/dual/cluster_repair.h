@@ -1,7 +1,7 @@
 // The edits of the repair loop (core/dual/repair.cpp): split_cluster (cluster_split.cpp), and
 // ClusterRepair, one round of splits, island and lens dissolutions and compensating merges or
-// splits over the clusters the defect tracker (core/dual/defect_tracker.h) reports. Every label goes through the
-// LabelEditor (core/dual/repair_state.h). Internal to core/dual.
+// splits over the clusters the defect tracker (core/dual/defect_tracker.h) reports. Every label
+// goes through the LabelEditor (core/dual/repair_state.h). Internal to core/dual.
 #pragma once
 
 #include <cstdint>
@@ -29,7 +29,8 @@ struct SplitScratch {
 /// Splits the cluster whose vertices are `members` (all of them, ascending) into up to
 /// new_labels.size() + 1 connected parts grown by BFS from farthest-point seeds; part k > 0
 /// takes new_labels[k − 1]. With `at_defect`, a cluster that meets one neighbour along two
-/// arcs, or whose frontier has two parts, is instead cut in two parts grown from those arcs.
+/// arcs is instead cut in two parts grown from those arcs, and a band (its frontier in two
+/// parts) in two parts grown from two paths across it.
 /// Returns the number of new labels used (0: the cluster could not be split).
 /// O(cluster size · parts · log cluster size); reads only the members and their 1-rings.
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
@@ -74,7 +75,7 @@ class ClusterRepair {
   std::vector<double> weight_;
   std::vector<uint8_t> touches_boundary_;
   std::vector<uint8_t> repaired_;  // clusters on a defect in an earlier round: no compensation there
-  ClusterSet is_defect_, near_, used_, beside_merge_;
+  ClusterSet is_defect_, near_, used_, beside_merge_, spared_;
   std::vector<int32_t> partner_;
   std::unordered_map<int32_t, std::vector<uint32_t>> round_members_;
   std::unordered_map<int32_t, std::vector<int32_t>> round_neighbours_;  // merge candidates' lists

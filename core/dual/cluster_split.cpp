@@ -163,10 +163,10 @@ std::vector<std::vector<uint32_t>> two_longest_arcs(const MeshView& mesh, std::s
 //   between two clusters, dissolved back, 40 rounds running).
 std::vector<std::vector<uint32_t>> defect_cut_seeds(const MeshView& mesh, std::span<const int32_t> labels,
                                                     std::span<const uint32_t> members, SplitScratch& scratch) {
-  const auto contacts = frontier_contacts(mesh, labels, members);
   std::vector<std::vector<uint32_t>> arcs = two_longest_arcs(mesh, labels, members);
   if (!arcs.empty()) return arcs;
-  const auto parts = two_largest_parts(mesh, labels, members, frontier_members(contacts), scratch);
+  const auto parts =
+      two_largest_parts(mesh, labels, members, frontier_members(frontier_contacts(mesh, labels, members)), scratch);
   if (parts.size() < 2) return {};
   // Two paths across the band, from its largest frontier part to the other: the shortest one,
   // and the shortest from the member of the first part farthest from it, kept apart from it.

@@ -296,10 +296,11 @@ void RangePass::local_adjacency(uint32_t) {
 
 // The cleaning's screen over the range (StoreBuildReport::TopologyScreen), from what the
 // adjacency pass has just built: its flagged vertices and its isolated twins (its faces with a
-// repeated index are counted by sort_owned). A duplicate face anywhere else puts a third face on one of its edges or
-// a second fan at one of its corners, so the flags show it; only a face and its twin alone
-// (each corner with exactly those two faces) need a look. Exact for any(): O(faces) compares
-// and O(n) flag reads, no sort. Runs before the face lists are turned into face ids.
+// repeated index are counted by sort_owned). A duplicate face anywhere else puts a third face
+// on one of its edges or a second fan at one of its corners, so the flags show it; only a face
+// and its twin alone (each corner with exactly those two faces) need a look. Exact for any():
+// O(faces) compares and O(n) flag reads, no sort. Runs before the face lists are turned into
+// face ids.
 void RangePass::screen_topology() {
   using Screen = StoreBuildReport::TopologyScreen;
   const uint32_t* tri = a_->tri.data();

@@ -1,6 +1,7 @@
 // Tests of the repair's edits (core/dual/cluster_repair.h): a defective cluster is cut between
 // the two arcs along which it meets a neighbour, a band is cut across, and a cluster between
-// two others (a lens on their frontier) is dissolved rather than split.
+// two others (a lens on their frontier) is dissolved rather than split, and a cluster in
+// pieces is cut along its pieces.
 #include "streamcvd/core/dual/cluster_repair.h"
 
 #include <gtest/gtest.h>
@@ -100,6 +101,31 @@ TEST(ClusterSplit, ABandRoundATubeIsCutAcrossNotAlongIt) {
     EXPECT_TRUE(neighbours.count(2) && neighbours.count(4)) << "part " << part << " touches both neighbouring bands";
   }
   EXPECT_TRUE(clusters_connected(view, labels, 11));
+}
+
+TEST(ClusterSplit, AClusterInPiecesIsCutAlongItsPieces) {
+  // Grid 20 × 20: cluster 1 is two squares apart (4 × 4 vertices each) inside cluster 0. A
+  // farthest-point split finds both seeds in the first square and leaves the other one apart;
+  // the split must part the two squares, so every cluster is connected afterwards.
+  const int nx = 20, ny = 20;
+  MeshStore store = MeshStore::build(make_grid(nx, ny).view());
+  const MeshView view = store.view();
+  std::vector<int32_t> labels(view.vertex_count());
+  for (uint32_t v = 0; v < view.vertex_count(); ++v) {
+    const long i = std::lround(view.positions[3 * v] * (nx - 1)), j = std::lround(view.positions[3 * v + 1] * (ny - 1));
+    const bool square_a = i >= 3 && i <= 6 && j >= 3 && j <= 6, square_b = i >= 12 && i <= 15 && j >= 12 && j <= 15;
+    labels[v] = square_a || square_b ? 1 : 0;
+  }
+  ASSERT_FALSE(clusters_connected(view, labels, 2));
+  for (const bool at_defect : {false, true}) {
+    std::vector<int32_t> split = labels;
+    detail::SplitScratch scratch;
+    const int32_t new_label = 2;
+    EXPECT_EQ(detail::split_cluster(view, split, members_of(labels, 1), {&new_label, 1}, scratch, at_defect), 1u);
+    EXPECT_EQ(members_of(split, 1).size(), 16u) << "at_defect " << at_defect;
+    EXPECT_EQ(members_of(split, 2).size(), 16u) << "at_defect " << at_defect;
+    EXPECT_TRUE(clusters_connected(view, split, 3)) << "at_defect " << at_defect;
+  }
 }
 
 TEST(RepairLoop, ALensOnAFrontierIsDissolvedAndTheCountKept) {

@@ -253,6 +253,17 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
   std::vector<uint32_t> seeds;
   const uint32_t first = members[0];
   seeds.push_back(farthest({&first, 1}));
+  if (queue.size() < members.size()) {
+    // A cluster in pieces: its farthest points lie in the first piece, which a farthest-point
+    // split could never part from the rest (dragon → 1000: an 8-member cluster with a stray
+    // member, one seed found, 40 rounds). The piece of the first member not reached is cut off.
+    const uint32_t mark = scratch.next_mark - 1;
+    const auto stray = std::find_if(members.begin(), members.end(), [&](uint32_t v) { return scratch.stamp[slot(v)] != mark; });
+    labels[*stray] = new_labels[0];
+    flood_label(mesh, labels, c, {&*stray, 1}, slot, scratch.stamp, scratch.next_mark++, queue,
+                [&](uint32_t from, uint32_t v) { labels[v] = labels[from]; });
+    return 1;
+  }
   while (seeds.size() < new_labels.size() + 1 && seeds.size() < members.size()) {
     const uint32_t s = farthest(seeds);
     if (std::find(seeds.begin(), seeds.end(), s) != seeds.end()) break;

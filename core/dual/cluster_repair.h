@@ -30,7 +30,9 @@ struct SplitScratch {
 /// new_labels.size() + 1 connected parts grown by BFS from farthest-point seeds; part k > 0
 /// takes new_labels[k − 1]. With `at_defect`, a cluster that meets one neighbour along two
 /// arcs is instead cut in two parts grown from those arcs, and a band (its frontier in two
-/// parts) in two parts grown from two paths across it.
+/// parts) in two parts grown from two paths across it. A cluster in pieces (its members not
+/// connected) instead gives new_labels[0] to the piece of the first member its first piece
+/// leaves out: one piece parted per call.
 /// Returns the number of new labels used (0: the cluster could not be split).
 /// O(cluster size · parts · log cluster size); reads only the members and their 1-rings.
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,

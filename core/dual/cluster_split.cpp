@@ -258,7 +258,8 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
     // split could never part from the rest (dragon → 1000: an 8-member cluster with a stray
     // member, one seed found, 40 rounds). The piece of the first member not reached is cut off.
     const uint32_t mark = scratch.next_mark - 1;
-    const auto stray = std::find_if(members.begin(), members.end(), [&](uint32_t v) { return scratch.stamp[slot(v)] != mark; });
+    const auto stray =
+        std::find_if(members.begin(), members.end(), [&](uint32_t v) { return scratch.stamp[slot(v)] != mark; });
     labels[*stray] = new_labels[0];
     flood_label(mesh, labels, c, {&*stray, 1}, slot, scratch.stamp, scratch.next_mark++, queue,
                 [&](uint32_t from, uint32_t v) { labels[v] = labels[from]; });

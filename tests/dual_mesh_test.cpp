@@ -1,6 +1,7 @@
 // Tests of core/dual/dual_mesh.h: the dual of hand-built clusterings (§VI-C), boundary strips
 // (§VI-D), the manifold-defect finder and the last-resort defect removal.
 #include "streamcvd/core/dual/dual_mesh.h"
+#include "streamcvd/core/dual/dual_topology.h"
 
 #include <gtest/gtest.h>
 
@@ -354,6 +355,18 @@ TEST(ManifoldDefects, FlagsBowtieVertex) {
   EXPECT_EQ(defects_of(points(5), {0, 1, 2, 0, 3, 4}), (Ids{0}));
   // Two closed fans (tetrahedra) glued at vertex 0.
   EXPECT_EQ(defects_of(points(7), {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3, 0, 5, 4, 0, 4, 6, 0, 6, 5, 4, 5, 6}), (Ids{0}));
+}
+
+TEST(ManifoldDefects, ClosedFansAroundAVertexAreCounted) {
+  // The faces at vertex 0 of two tetrahedra glued there: two closed fans, a ring's pinch.
+  dual::FanScratch scratch;
+  const std::vector<dual::Face> pinch = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {0, 5, 4}, {0, 4, 6}, {0, 6, 5}};
+  EXPECT_EQ(dual::closed_fan_count(0, pinch, scratch), 2u);
+  EXPECT_EQ(dual::closed_fan_count(0, std::span(pinch).first(3), scratch), 1u);
+  // An open fan (a boundary vertex) and an edge used twice one way are no closed fans.
+  EXPECT_EQ(dual::closed_fan_count(0, std::span(pinch).first(2), scratch), 0u);
+  const std::vector<dual::Face> flipped = {{0, 2, 1}, {0, 1, 3}, {0, 2, 3}};
+  EXPECT_EQ(dual::closed_fan_count(0, flipped, scratch), 0u);
 }
 
 TEST(ManifoldDefects, FlagsEdgeWithThreeFaces) {

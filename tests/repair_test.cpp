@@ -1,12 +1,15 @@
 // Tests of core/dual/repair.h: the incremental repair loop finds the same defects as the global
-// finder on the built dual, and leaves a defect-free dual with connected clusters.
+// finder on the built dual, leaves a defect-free dual with connected clusters, and cuts a ring
+// round a tube in three.
 #include "streamcvd/core/dual/repair.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <random>
+#include <set>
 #include <vector>
 
 #include "streamcvd/core/clustering/clustering.h"
@@ -146,6 +149,53 @@ TEST(RepairLoop, JoinsAGroupRingedByOneCluster) {
   EXPECT_TRUE(clusters_connected(g.view, g.labels, RingedGroup::K));
   std::vector<uint32_t> sizes = dual::cluster_sizes(g.view, g.labels, RingedGroup::K);
   EXPECT_EQ(std::count(sizes.begin(), sizes.end(), 0u), 0) << "the cluster count must stay K";
+}
+
+TEST(RepairLoop, ABandRoundATubeIsCutInThreeInOneRound) {
+  // Torus of 120 rings × 16: patches of 6 rings × 4 segments, except rings 60–65, one band round
+  // the tube. Its dual vertex has a fan of two closed cycles (a ring). Cut in two, the halves
+  // meet along both cuts, a dual edge with four faces, and later rounds peel them a few members
+  // at a time (dragon → 1000: 5 of 48 runs over 10 rounds); cut in three, each pair meets once.
+  const int rings = 120, segments = 16;
+  MeshStore store = MeshStore::build(make_torus(rings, segments).view());
+  const MeshView view = store.view();
+  auto angle_index = [](double a, int n) { return std::lround((a < 0 ? a + 2 * M_PI : a) / (2 * M_PI) * n) % n; };
+  std::vector<int32_t> labels(view.vertex_count());
+  const int32_t band = 0;
+  int32_t K = 1;
+  std::map<std::pair<long, long>, int32_t> patch;
+  for (uint32_t v = 0; v < view.vertex_count(); ++v) {
+    const float* p = &view.positions[3 * size_t(v)];
+    const long ring = angle_index(std::atan2(p[1], p[0]), rings);
+    const long segment = angle_index(std::atan2(p[2], std::hypot(p[0], p[1]) - 1.0), segments);
+    if (ring >= 60 && ring < 66) {
+      labels[v] = band;
+      continue;
+    }
+    auto [it, fresh] = patch.try_emplace({ring / 6, segment / 4}, K);
+    if (fresh) ++K;
+    labels[v] = it->second;
+  }
+  ASSERT_EQ(K, 1 + 19 * 4);
+  ItemData items = compute_item_data(view);
+  BoundaryLoops loops = find_boundary_loops(view);
+  ASSERT_GT(global_defects(view, labels, uint32_t(K), loops), 0u);
+  std::vector<uint32_t> band_members;
+  for (uint32_t v = 0; v < view.vertex_count(); ++v)
+    if (labels[v] == band) band_members.push_back(v);
+  std::vector<uint8_t> adjustable(size_t(K), 1);
+  ClusteringReport report;
+  DefectRepairOptions options;
+  options.relax = false;
+  DefectRepairResult r =
+      repair_dual_defects(view, items, labels, uint32_t(K), adjustable, loops, options, report, ram_storage());
+  EXPECT_EQ(r.rounds, 1u);
+  EXPECT_EQ(global_defects(view, labels, uint32_t(K), loops), 0u);
+  std::set<int32_t> parts;
+  for (uint32_t v : band_members) parts.insert(labels[v]);
+  EXPECT_EQ(parts.size(), 3u) << "the band is cut in three";
+  std::vector<uint32_t> sizes = dual::cluster_sizes(view, labels, uint32_t(K));
+  EXPECT_EQ(std::count(sizes.begin(), sizes.end(), 0u), 0) << "two merges elsewhere keep the cluster count";
 }
 
 TEST(RepairLoop, CleanClusteringNeedsNoRound) {

@@ -92,8 +92,8 @@ uint32_t ClusterRepair::size_of(int32_t c) {
   return it != round_members_.end() ? uint32_t(it->second.size()) : labels_.index().size(c);
 }
 
-std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_clusters, int64_t count_change,
-                                          bool keep_strips, RepairRoundStats& stats) {
+std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_clusters, std::span<const int32_t> rings,
+                                          int64_t count_change, bool keep_strips, RepairRoundStats& stats) {
   {
     std::vector<int32_t> stale = labels_.take_stale();
     std::sort(stale.begin(), stale.end());  // ids in store order (see the merge candidates)
@@ -170,12 +170,17 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     return !near_.contains(c) && !repaired_[c] && adjustable_[c] && !(keep_strips && touches_boundary_[c]);
   };
   // Compensate so that the number of non-empty clusters changes by count_change.
-  // A defective cluster is cut in two (measured: cutting in three fixed no more dragon defects
-  // and lost genus on fertility at N = 200 more often).
-  constexpr size_t kParts = 2;
+  // A defective cluster is cut in two (measured: cutting every one in three fixed no more
+  // dragon defects and lost genus on fertility at N = 200 more often), a ring in three: halves
+  // of a ring meet along both cuts, a dual edge with four faces, which later rounds peeled a
+  // few members at a time (dragon → 1000, default threads: 5 of 48 runs over 10 rounds, 0 with
+  // rings cut in three; seeds 1–60: 9 → 4).
+  auto parts_of = [&](int32_t c) {
+    return std::min<size_t>(std::binary_search(rings.begin(), rings.end(), c) ? 3 : 2, size_of(c));
+  };
   auto ids_needed = [&] {
     size_t n = 0;
-    for (int32_t c : to_split) n += std::min<size_t>(kParts, size_of(c)) - 1;
+    for (int32_t c : to_split) n += parts_of(c) - 1;
     return n;
   };
   if (ids_needed() + keep_free > free_ids.size()) {
@@ -259,7 +264,7 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     return made;
   };
   for (int32_t c : to_split) {
-    const size_t parts = std::min<size_t>(kParts, size_of(c));
+    const size_t parts = parts_of(c);
     std::vector<int32_t> ids(free_ids.end() - std::ptrdiff_t(parts - 1), free_ids.end());
     const uint32_t made = split(c, ids, true);
     if (made == 0) continue;

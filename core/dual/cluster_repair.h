@@ -30,9 +30,10 @@ struct SplitScratch {
 /// new_labels.size() + 1 connected parts grown by BFS from farthest-point seeds; part k > 0
 /// takes new_labels[k − 1]. With `at_defect`, a cluster that meets one neighbour along two
 /// arcs is instead cut in two parts grown from those arcs, and a band (its frontier in two
-/// parts) in two parts grown from two paths across it. A cluster in pieces (its members not
-/// connected) instead gives new_labels[0] to the piece of the first member its first piece
-/// leaves out: one piece parted per call.
+/// parts) in new_labels.size() + 1 parts grown from as many paths across it (arcs are tried
+/// first only with one new label; more are asked for a ring). A cluster in pieces (its
+/// members not connected) instead gives new_labels[0] to the piece of the first member its
+/// first piece leaves out: one piece parted per call.
 /// Returns the number of new labels used (0: the cluster could not be split).
 /// O(cluster size · parts · log cluster size); reads only the members and their 1-rings.
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
@@ -54,13 +55,14 @@ class ClusterRepair {
   ClusterRepair(const MeshView& mesh, const ItemData& items, LabelEditor& labels, uint32_t K,
                 std::span<const uint8_t> adjustable);
 
-  /// Splits in two and dissolves the clusters of `defect_clusters` (sorted, unique), and changes
+  /// Splits in two and dissolves the clusters of `defect_clusters` (sorted, unique), splits in
+  /// three those of them in `rings` (sorted; DefectTracker::rings), and changes
   /// the number of non-empty clusters by `count_change` with compensating merges or splits (0:
   /// the count stays). With `keep_strips` those compensations only touch clusters off the
   /// boundary, so the strip vertices of the dual stay as they are. Returns the clusters changed
   /// (sorted, unique). O(vertices of the clusters it reads and their 1-rings) + a few O(K) scans.
-  std::vector<int32_t> round(std::span<const int32_t> defect_clusters, int64_t count_change, bool keep_strips,
-                             RepairRoundStats& stats);
+  std::vector<int32_t> round(std::span<const int32_t> defect_clusters, std::span<const int32_t> rings,
+                             int64_t count_change, bool keep_strips, RepairRoundStats& stats);
 
  private:
   void refresh(std::span<const int32_t> clusters);

@@ -161,18 +161,19 @@ std::vector<std::vector<uint32_t>> two_longest_arcs(const MeshView& mesh, std::s
 //   dual): two paths across it, from one part to the other, on opposite sides; grown from the
 //   parts themselves, the halves would be two bands again (elephant → 100: a 6-member half
 //   between two clusters, dissolved back, 40 rounds running).
-std::vector<std::vector<uint32_t>> defect_cut_seeds(const MeshView& mesh, std::span<const int32_t> labels,
-                                                    std::span<const uint32_t> members, SplitScratch& scratch) {
-  std::vector<std::vector<uint32_t>> arcs = two_longest_arcs(mesh, labels, members);
-  if (!arcs.empty()) return arcs;
+// Paths across a band (its frontier in two parts or more), `count` of them, from its largest
+// frontier part to the second: the shortest one, then each next from the member of the first
+// part farthest from the paths so far, kept apart from them. Parts grown from the paths each
+// hold one, so each reaches both frontier parts: cuts across. (Parts grown from far-apart
+// points of one frontier part need not: the far end of a band longer than it is round lies
+// at equal hop distance from both and goes to one of them.) Fewer than `count` when the band
+// is too narrow for them. O(count · cluster size · log cluster size).
+std::vector<std::vector<uint32_t>> paths_across_band(const MeshView& mesh, std::span<const int32_t> labels,
+                                                     std::span<const uint32_t> members, size_t count,
+                                                     SplitScratch& scratch) {
   const auto parts =
       two_largest_parts(mesh, labels, members, frontier_members(frontier_contacts(mesh, labels, members)), scratch);
   if (parts.size() < 2) return {};
-  // Two paths across the band, from its largest frontier part to the other: the shortest one,
-  // and the shortest from the member of the first part farthest from it, kept apart from it.
-  // Halves grown from the paths each hold one, so each reaches both parts: a cut across.
-  // (Halves grown from two far-apart points of one part need not: the far end of a band
-  // longer than it is round lies at equal hop distance from both and goes to one of them.)
   const int32_t c = labels[members[0]];
   auto slot = [&](uint32_t v) { return slot_of(members, v); };
   std::vector<uint8_t> part_of(members.size(), 0);  // 1, 2: in that frontier part
@@ -194,30 +195,56 @@ std::vector<std::vector<uint32_t>> defect_cut_seeds(const MeshView& mesh, std::s
     return path;
   };
   scratch.stamp.assign(members.size(), 0);
-  const std::vector<uint32_t> first = path_to_part2(parts[0]);
-  if (first.empty()) return {};
-  // The member of the first part farthest from that path, and the path from it that avoids it.
-  scratch.stamp.assign(members.size(), 0);
-  flood_label(mesh, labels, c, first, slot, scratch.stamp, 1, scratch.queue, [](uint32_t, uint32_t) {});
-  uint32_t far = UINT32_MAX;
-  for (auto it = scratch.queue.rbegin(); it != scratch.queue.rend() && far == UINT32_MAX; ++it)
-    if (part_of[slot(*it)] == 1) far = *it;
-  if (far == UINT32_MAX || std::find(first.begin(), first.end(), far) != first.end()) return {};
-  // Preferably not next to it either (halves that touch along a path's length do not part the
-  // band there); in a band a few members wide, through the first path's neighbours; failing
-  // that, the second half grows from the far member alone.
-  for (const bool clear_of_neighbours : {true, false}) {
+  std::vector<std::vector<uint32_t>> paths;
+  paths.push_back(path_to_part2(parts[0]));
+  if (paths[0].empty()) return {};
+  std::vector<uint32_t> on_paths = paths[0];
+  while (paths.size() < count) {
+    // The member of the first part farthest from the paths so far.
     scratch.stamp.assign(members.size(), 0);
-    for (uint32_t v : first) {
-      scratch.stamp[slot(v)] = 1;
-      if (clear_of_neighbours)
-        for (uint32_t n : mesh.neighbours(v))
-          if (labels[n] == c && n != far) scratch.stamp[slot(n)] = 1;
+    flood_label(mesh, labels, c, on_paths, slot, scratch.stamp, 1, scratch.queue, [](uint32_t, uint32_t) {});
+    uint32_t far = UINT32_MAX;
+    for (auto it = scratch.queue.rbegin(); it != scratch.queue.rend() && far == UINT32_MAX; ++it)
+      if (part_of[slot(*it)] == 1) far = *it;
+    if (far == UINT32_MAX || std::find(on_paths.begin(), on_paths.end(), far) != on_paths.end()) break;
+    // Preferably not next to them either (parts that touch along a path's length do not part
+    // the band there); in a band a few members wide, through their neighbours; failing that,
+    // the next part grows from the far member alone.
+    std::vector<uint32_t> next;
+    for (const bool clear_of_neighbours : {true, false}) {
+      scratch.stamp.assign(members.size(), 0);
+      for (uint32_t v : on_paths) {
+        scratch.stamp[slot(v)] = 1;
+        if (clear_of_neighbours)
+          for (uint32_t n : mesh.neighbours(v))
+            if (labels[n] == c && n != far) scratch.stamp[slot(n)] = 1;
+      }
+      next = path_to_part2({&far, 1});
+      if (!next.empty()) break;
     }
-    const std::vector<uint32_t> second = path_to_part2({&far, 1});
-    if (!second.empty()) return {first, second};
+    if (next.empty()) next = {far};
+    on_paths.insert(on_paths.end(), next.begin(), next.end());
+    paths.push_back(std::move(next));
   }
-  return {first, {far}};
+  return paths;
+}
+
+// Seeds that cut a defective cluster where its dual vertex is not a disc, as groups of
+// members, or nothing when its frontier is one arc per neighbour and one part in all.
+// - c meets a neighbour y along several arcs (the dual edge c–y has four faces): the two
+//   largest arcs. A farthest-point split cuts such a cluster along its length, and each half
+//   still meets y twice (dragon → 1000: the clusters at a tooth were halved 30 → 21 → 12 → 10
+//   members over four rounds before the defect went).
+// - c is a band (its frontier has several parts: a ring round a thin feature, two fans in the
+//   dual): two paths across it, from one part to the other, on opposite sides; grown from the
+//   parts themselves, the halves would be two bands again (elephant → 100: a 6-member half
+//   between two clusters, dissolved back, 40 rounds running).
+std::vector<std::vector<uint32_t>> defect_cut_seeds(const MeshView& mesh, std::span<const int32_t> labels,
+                                                    std::span<const uint32_t> members, SplitScratch& scratch) {
+  std::vector<std::vector<uint32_t>> arcs = two_longest_arcs(mesh, labels, members);
+  if (!arcs.empty()) return arcs;
+  std::vector<std::vector<uint32_t>> paths = paths_across_band(mesh, labels, members, 2, scratch);
+  return paths.size() == 2 ? paths : std::vector<std::vector<uint32_t>>{};
 }
 
 }  // namespace
@@ -229,16 +256,22 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
   std::vector<uint32_t>& queue = scratch.queue;
   auto slot = [&](uint32_t v) { return slot_of(members, v); };
   if (at_defect) {
-    const std::vector<std::vector<uint32_t>> arcs = defect_cut_seeds(mesh, labels, members, scratch);
-    if (!arcs.empty()) {
-      // Two parts grown from the two groups (arcs or paths): each part keeps one of them.
+    // One new label: the arcs or paths of defect_cut_seeds; more (a ring): paths across it.
+    const std::vector<std::vector<uint32_t>> groups =
+        new_labels.size() == 1 ? defect_cut_seeds(mesh, labels, members, scratch)
+                               : paths_across_band(mesh, labels, members, new_labels.size() + 1, scratch);
+    if (groups.size() == new_labels.size() + 1) {
+      // Parts grown from the groups (arcs or paths): each part keeps one of them.
       scratch.stamp.assign(members.size(), 0);
-      std::vector<uint32_t> sources = arcs[0];
-      sources.insert(sources.end(), arcs[1].begin(), arcs[1].end());
-      for (uint32_t v : arcs[1]) labels[v] = new_labels[0];
+      std::vector<uint32_t> sources;
+      for (size_t k = 0; k < groups.size(); ++k) {
+        sources.insert(sources.end(), groups[k].begin(), groups[k].end());
+        if (k > 0)
+          for (uint32_t v : groups[k]) labels[v] = new_labels[k - 1];
+      }
       flood_label(mesh, labels, c, sources, slot, scratch.stamp, 1, queue,
                   [&](uint32_t from, uint32_t v) { labels[v] = labels[from]; });
-      return 1;
+      return uint32_t(new_labels.size());
     }
   }
   scratch.stamp.assign(members.size(), 0);

@@ -136,10 +136,31 @@ std::vector<int32_t> DefectTracker::check(std::span<const int32_t> labels, bool 
     }
   for (const dual::FanVerdict& v : verdicts)
     if (v.vertex < K_) has_faces_[v.vertex] = 0;
+  find_rings(faces);
   set_.clear();
   std::sort(defective_list_.begin(), defective_list_.end());
   dual::sort_unique(bad);
   return bad;
+}
+
+// The defective clusters of the set whose dual vertex is a pinch of closed fans: a ring round
+// a thin feature, which a cut in two leaves as two clusters meeting along both cuts.
+// O(D log D) for the D faces at defective clusters.
+void DefectTracker::find_rings(std::span<const dual::Face> faces) {
+  rings_.clear();
+  std::vector<std::pair<uint32_t, uint32_t>> corners;  // (defective cluster of the set, face)
+  for (size_t f = 0; f < faces.size(); ++f)
+    for (uint32_t x : faces[f])
+      if (x < K_ && defective_[x] && set_.contains(int32_t(x))) corners.push_back({x, uint32_t(f)});
+  std::sort(corners.begin(), corners.end());
+  std::vector<dual::Face> around;
+  dual::FanScratch scratch;
+  for (size_t i = 0; i < corners.size();) {
+    const uint32_t c = corners[i].first;
+    around.clear();
+    for (; i < corners.size() && corners[i].first == c; ++i) around.push_back(faces[corners[i].second]);
+    if (dual::closed_fan_count(c, around, scratch) >= 2) rings_.push_back(int32_t(c));
+  }
 }
 
 bool DefectTracker::mark_defective(int32_t c) {

@@ -11,6 +11,7 @@
 
 #include "streamcvd/core/clustering/cluster_members.h"
 #include "streamcvd/core/dual/dual_mesh.h"
+#include "streamcvd/core/dual/dual_topology.h"
 #include "streamcvd/core/dual/repair_state.h"
 #include "streamcvd/core/mesh/mesh_view.h"
 
@@ -42,11 +43,15 @@ class DefectTracker {
   uint64_t unjoined_pairs() const { return unjoined_pairs_; }
   /// Strip vertices the dual of the last checked labels adds (0 without strips).
   uint32_t strip_vertices() const { return strip_vertices_; }
+  /// The rings found at the last check, sorted: defective clusters whose dual fan is two or more
+  /// closed cycles (a band round a thin feature).
+  const std::vector<int32_t>& rings() const { return rings_; }
 
  private:
   std::vector<int32_t> check(std::span<const int32_t> labels, bool all);
   // Marks c defective; true when it was not.
   bool mark_defective(int32_t c);
+  void find_rings(std::span<const dual::Face> faces);
 
   const MeshView& mesh_;
   const BoundaryLoops& loops_;
@@ -61,6 +66,7 @@ class DefectTracker {
   uint64_t defect_vertices_ = 0;
   uint64_t unjoined_pairs_ = 0;
   uint32_t strip_vertices_ = 0;
+  std::vector<int32_t> rings_;
 };
 
 }  // namespace streamcvd::detail

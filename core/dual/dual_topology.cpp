@@ -199,7 +199,17 @@ std::vector<uint64_t> neighbour_pairs_around(const MeshView& mesh, std::span<con
   return pairs;
 }
 
-bool fan_defective(uint32_t x, std::span<const Face> faces, FanScratch& scratch) {
+namespace {
+
+struct FanShape {
+  bool edges_manifold = true;  // every edge at x in at most two faces, one each way
+  bool closed = true;          // every edge at x in two faces
+  uint32_t fans = 0;
+};
+
+// The fans round x: faces joined through their shared edges at x. Stops at the first edge
+// that is not manifold. O(n log n) for n faces.
+FanShape fan_shape(uint32_t x, std::span<const Face> faces, FanScratch& scratch) {
   // One 64-bit key per (face, edge at x): the other end of the edge, the face, and whether the
   // face runs x → other (1) or other → x (0); sorted, a run of keys is one edge at x.
   auto& entries = scratch.entries;
@@ -218,23 +228,36 @@ bool fan_defective(uint32_t x, std::span<const Face> faces, FanScratch& scratch)
     while (parent[a] != a) a = parent[a] = parent[parent[a]];
     return a;
   };
-  uint32_t fans = uint32_t(faces.size());
+  FanShape shape;
+  shape.fans = uint32_t(faces.size());
   for (size_t i = 0; i < entries.size();) {
     size_t j = i;
     uint32_t out = 0;
     while (j < entries.size() && entries[j] >> 32 == entries[i] >> 32) out += uint32_t(entries[j++] & 1);
     const size_t n = j - i, in = n - out;
-    if (n > 2 || out == 2 || in == 2) return true;
+    if (n > 2 || out == 2 || in == 2) {
+      shape.edges_manifold = false;
+      return shape;
+    }
     if (n == 2) {
       const uint32_t a = find(uint32_t(entries[i]) >> 1), b = find(uint32_t(entries[i + 1]) >> 1);
       if (a != b) {
         parent[a] = b;
-        --fans;
+        --shape.fans;
       }
+    } else {
+      shape.closed = false;
     }
     i = j;
   }
-  if (fans != 1) return true;
+  return shape;
+}
+
+}  // namespace
+
+bool fan_defective(uint32_t x, std::span<const Face> faces, FanScratch& scratch) {
+  const FanShape shape = fan_shape(x, faces, scratch);
+  if (!shape.edges_manifold || shape.fans != 1) return true;
   // Two faces on one vertex set {x, y, z} hold both edges x-y and x-z, which then have no other
   // face: past the tests above they are the whole fan. So only a fan of two faces can hold them.
   if (faces.size() != 2) return false;
@@ -242,6 +265,11 @@ bool fan_defective(uint32_t x, std::span<const Face> faces, FanScratch& scratch)
   std::sort(a.begin(), a.end());
   std::sort(b.begin(), b.end());
   return a == b;
+}
+
+uint32_t closed_fan_count(uint32_t x, std::span<const Face> faces, FanScratch& scratch) {
+  const FanShape shape = fan_shape(x, faces, scratch);
+  return shape.edges_manifold && shape.closed ? shape.fans : 0;
 }
 
 std::vector<FanVerdict> check_fan_csr(std::span<const Face> faces, std::span<const uint32_t> ids,

@@ -75,7 +75,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     // round then needs no count round after it. (Merges next to a defect's splits made the two
     // chase each other: dragon 36 rounds instead of 12; the repaired clusters are kept out.)
     const int64_t asked = change;
-    const std::vector<int32_t> touched = repair.round(bad, asked, options.target_vertices != 0, stats);
+    const std::vector<int32_t> touched = repair.round(bad, tracker.rings(), asked, options.target_vertices != 0, stats);
     // Clusters merged for the count are relaxed too: left as they are, the merged pairs are
     // twice the area of their neighbours (strip plane, N = 400: CV of the cluster areas 0.20
     // instead of 0.07). Spread over the surface, they make the relaxation visit most chunks.

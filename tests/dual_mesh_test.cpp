@@ -357,16 +357,18 @@ TEST(ManifoldDefects, FlagsBowtieVertex) {
   EXPECT_EQ(defects_of(points(7), {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3, 0, 5, 4, 0, 4, 6, 0, 6, 5, 4, 5, 6}), (Ids{0}));
 }
 
-TEST(ManifoldDefects, ClosedFansAroundAVertexAreCounted) {
+TEST(ManifoldDefects, ClosedFansAroundAVertexAreListed) {
   // The faces at vertex 0 of two tetrahedra glued there: two closed fans, a ring's pinch.
   dual::FanScratch scratch;
-  const std::vector<dual::Face> pinch = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {0, 5, 4}, {0, 4, 6}, {0, 6, 5}};
-  EXPECT_EQ(dual::closed_fan_count(0, pinch, scratch), 2u);
-  EXPECT_EQ(dual::closed_fan_count(0, std::span(pinch).first(3), scratch), 1u);
+  using Links = std::vector<std::vector<uint32_t>>;
+  const std::vector<dual::Face> pinch = {{0, 2, 1}, {0, 5, 4}, {0, 1, 3}, {0, 4, 6}, {0, 3, 2}, {0, 6, 5}};
+  EXPECT_EQ(dual::closed_fans(0, pinch, scratch), (Links{{1, 2, 3}, {4, 5, 6}}));
+  const std::vector<dual::Face> one = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}};
+  EXPECT_EQ(dual::closed_fans(0, one, scratch), (Links{{1, 2, 3}}));
   // An open fan (a boundary vertex) and an edge used twice one way are no closed fans.
-  EXPECT_EQ(dual::closed_fan_count(0, std::span(pinch).first(2), scratch), 0u);
+  EXPECT_TRUE(dual::closed_fans(0, std::span(one).first(2), scratch).empty());
   const std::vector<dual::Face> flipped = {{0, 2, 1}, {0, 1, 3}, {0, 2, 3}};
-  EXPECT_EQ(dual::closed_fan_count(0, flipped, scratch), 0u);
+  EXPECT_TRUE(dual::closed_fans(0, flipped, scratch).empty());
 }
 
 TEST(ManifoldDefects, FlagsEdgeWithThreeFaces) {

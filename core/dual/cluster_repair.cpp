@@ -92,7 +92,7 @@ uint32_t ClusterRepair::size_of(int32_t c) {
   return it != round_members_.end() ? uint32_t(it->second.size()) : labels_.index().size(c);
 }
 
-std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_clusters, std::span<const int32_t> rings,
+std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_clusters, std::span<const Ring> rings,
                                           int64_t count_change, bool keep_strips, RepairRoundStats& stats) {
   {
     std::vector<int32_t> stale = labels_.take_stale();
@@ -175,9 +175,11 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
   // of a ring meet along both cuts, a dual edge with four faces, which later rounds peeled a
   // few members at a time (dragon → 1000, default threads: 5 of 48 runs over 10 rounds, 0 with
   // rings cut in three; seeds 1–60: 9 → 4).
-  auto parts_of = [&](int32_t c) {
-    return std::min<size_t>(std::binary_search(rings.begin(), rings.end(), c) ? 3 : 2, size_of(c));
+  auto ring_of = [&](int32_t c) -> const Ring* {
+    auto it = std::lower_bound(rings.begin(), rings.end(), c, [](const Ring& r, int32_t x) { return r.cluster < x; });
+    return it != rings.end() && it->cluster == c ? &*it : nullptr;
   };
+  auto parts_of = [&](int32_t c) { return std::min<size_t>(ring_of(c) ? 3 : 2, size_of(c)); };
   auto ids_needed = [&] {
     size_t n = 0;
     for (int32_t c : to_split) n += parts_of(c) - 1;
@@ -259,7 +261,7 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
   }
   auto split = [&](int32_t c, std::span<const int32_t> ids, bool at_defect) {
     std::span<const uint32_t> members = members_of(c);
-    const uint32_t made = split_cluster(mesh_, labels_.labels(), members, ids, scratch_, at_defect);
+    const uint32_t made = split_cluster(mesh_, labels_.labels(), members, ids, scratch_, at_defect, ring_of(c));
     for (uint32_t v : members) labels_.note(v, c);
     return made;
   };

@@ -31,13 +31,15 @@ struct SplitScratch {
 /// takes new_labels[k − 1]. With `at_defect`, a cluster that meets one neighbour along two
 /// arcs is instead cut in two parts grown from those arcs, and a band (its frontier in two
 /// parts) in new_labels.size() + 1 parts grown from as many paths across it (arcs are tried
-/// first only with one new label; more are asked for a ring). A cluster in pieces (its
+/// first only with one new label; more are asked for a ring, whose frontier parts are then
+/// its members next to either side of `ring`). A cluster in pieces (its
 /// members not connected) instead gives new_labels[0] to the piece of the first member its
 /// first piece leaves out: one piece parted per call.
 /// Returns the number of new labels used (0: the cluster could not be split).
 /// O(cluster size · parts · log cluster size); reads only the members and their 1-rings.
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
-                       std::span<const int32_t> new_labels, SplitScratch& scratch, bool at_defect = false);
+                       std::span<const int32_t> new_labels, SplitScratch& scratch, bool at_defect = false,
+                       const Ring* ring = nullptr);
 
 /// True when the members of the cluster `members` (all, ascending) that touch another cluster
 /// form one connected part: a disc-like cluster, not a band round a thin feature.
@@ -56,12 +58,12 @@ class ClusterRepair {
                 std::span<const uint8_t> adjustable);
 
   /// Splits in two and dissolves the clusters of `defect_clusters` (sorted, unique), splits in
-  /// three those of them in `rings` (sorted; DefectTracker::rings), and changes
+  /// three those of them in `rings` (sorted by cluster; DefectTracker::rings), and changes
   /// the number of non-empty clusters by `count_change` with compensating merges or splits (0:
   /// the count stays). With `keep_strips` those compensations only touch clusters off the
   /// boundary, so the strip vertices of the dual stay as they are. Returns the clusters changed
   /// (sorted, unique). O(vertices of the clusters it reads and their 1-rings) + a few O(K) scans.
-  std::vector<int32_t> round(std::span<const int32_t> defect_clusters, std::span<const int32_t> rings,
+  std::vector<int32_t> round(std::span<const int32_t> defect_clusters, std::span<const Ring> rings,
                              int64_t count_change, bool keep_strips, RepairRoundStats& stats);
 
  private:

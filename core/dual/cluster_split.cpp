@@ -162,7 +162,9 @@ std::vector<std::vector<uint32_t>> two_longest_arcs(const MeshView& mesh, std::s
 //   parts themselves, the halves would be two bands again (elephant → 100: a 6-member half
 //   between two clusters, dissolved back, 40 rounds running).
 // Paths across a band (its frontier in two parts or more), `count` of them, from its largest
-// frontier part to the second: the shortest one, then each next from the member of the first
+// frontier part to the second (for a ring, from its members next to the clusters of its first
+// side to those next to its second: a ring one member wide somewhere has its frontier in one
+// part, and the sides still tell where to cut across): the shortest one, then each next from the member of the first
 // part farthest from the paths so far, kept apart from them. Parts grown from the paths each
 // hold one, so each reaches both frontier parts: cuts across. (Parts grown from far-apart
 // points of one frontier part need not: the far end of a band longer than it is round lies
@@ -170,15 +172,27 @@ std::vector<std::vector<uint32_t>> two_longest_arcs(const MeshView& mesh, std::s
 // is too narrow for them. O(count · cluster size · log cluster size).
 std::vector<std::vector<uint32_t>> paths_across_band(const MeshView& mesh, std::span<const int32_t> labels,
                                                      std::span<const uint32_t> members, size_t count,
-                                                     SplitScratch& scratch) {
-  const auto parts =
-      two_largest_parts(mesh, labels, members, frontier_members(frontier_contacts(mesh, labels, members)), scratch);
-  if (parts.size() < 2) return {};
+                                                     SplitScratch& scratch, const Ring* ring) {
   const int32_t c = labels[members[0]];
   auto slot = [&](uint32_t v) { return slot_of(members, v); };
+  std::vector<std::vector<uint32_t>> parts;
   std::vector<uint8_t> part_of(members.size(), 0);  // 1, 2: in that frontier part
-  for (uint8_t k = 0; k < 2; ++k)
-    for (uint32_t v : parts[k]) part_of[slot(v)] = uint8_t(k + 1);
+  if (ring) {  // a member next to both sides is in part 2, and a source too
+    parts.resize(2);
+    for (const auto& [y, v] : frontier_contacts(mesh, labels, members))
+      for (uint8_t k = 0; k < 2; ++k)
+        if (std::binary_search(ring->sides[k].begin(), ring->sides[k].end(), y)) {
+          parts[k].push_back(v);
+          part_of[slot(v)] = std::max<uint8_t>(part_of[slot(v)], uint8_t(k + 1));
+        }
+    for (auto& part : parts) dual::sort_unique(part);
+    if (parts[0].empty() || parts[1].empty()) return {};
+  } else {
+    parts = two_largest_parts(mesh, labels, members, frontier_members(frontier_contacts(mesh, labels, members)), scratch);
+    if (parts.size() < 2) return {};
+    for (uint8_t k = 0; k < 2; ++k)
+      for (uint32_t v : parts[k]) part_of[slot(v)] = uint8_t(k + 1);
+  }
   std::vector<uint32_t> parent(members.size(), UINT32_MAX);
   // The shortest path (BFS inside c, avoiding the members stamped 1 in scratch.stamp) from
   // `sources` to frontier part 2, from its part-2 end back to a source; empty when none.
@@ -243,14 +257,15 @@ std::vector<std::vector<uint32_t>> defect_cut_seeds(const MeshView& mesh, std::s
                                                     std::span<const uint32_t> members, SplitScratch& scratch) {
   std::vector<std::vector<uint32_t>> arcs = two_longest_arcs(mesh, labels, members);
   if (!arcs.empty()) return arcs;
-  std::vector<std::vector<uint32_t>> paths = paths_across_band(mesh, labels, members, 2, scratch);
+  std::vector<std::vector<uint32_t>> paths = paths_across_band(mesh, labels, members, 2, scratch, nullptr);
   return paths.size() == 2 ? paths : std::vector<std::vector<uint32_t>>{};
 }
 
 }  // namespace
 
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
-                       std::span<const int32_t> new_labels, SplitScratch& scratch, bool at_defect) {
+                       std::span<const int32_t> new_labels, SplitScratch& scratch, bool at_defect,
+                       const Ring* ring) {
   if (members.size() < 2 || new_labels.empty()) return 0;
   const int32_t c = labels[members[0]];
   std::vector<uint32_t>& queue = scratch.queue;
@@ -259,7 +274,7 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
     // One new label: the arcs or paths of defect_cut_seeds; more (a ring): paths across it.
     const std::vector<std::vector<uint32_t>> groups =
         new_labels.size() == 1 ? defect_cut_seeds(mesh, labels, members, scratch)
-                               : paths_across_band(mesh, labels, members, new_labels.size() + 1, scratch);
+                               : paths_across_band(mesh, labels, members, new_labels.size() + 1, scratch, ring);
     if (groups.size() == new_labels.size() + 1) {
       // Parts grown from the groups (arcs or paths): each part keeps one of them.
       scratch.stamp.assign(members.size(), 0);

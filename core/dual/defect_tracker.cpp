@@ -159,7 +159,13 @@ void DefectTracker::find_rings(std::span<const dual::Face> faces) {
     const uint32_t c = corners[i].first;
     around.clear();
     for (; i < corners.size() && corners[i].first == c; ++i) around.push_back(faces[corners[i].second]);
-    if (dual::closed_fan_count(c, around, scratch) >= 2) rings_.push_back(int32_t(c));
+    std::vector<std::vector<uint32_t>> fans = dual::closed_fans(c, around, scratch);
+    if (fans.size() < 2) continue;
+    std::partial_sort(fans.begin(), fans.begin() + 2, fans.end(),
+                      [](const auto& a, const auto& b) { return a.size() > b.size(); });
+    Ring& ring = rings_.emplace_back();
+    ring.cluster = int32_t(c);
+    for (int k = 0; k < 2; ++k) ring.sides[k].assign(fans[k].begin(), fans[k].end());
   }
 }
 

@@ -43,9 +43,8 @@ class DefectTracker {
   uint64_t unjoined_pairs() const { return unjoined_pairs_; }
   /// Strip vertices the dual of the last checked labels adds (0 without strips).
   uint32_t strip_vertices() const { return strip_vertices_; }
-  /// The rings found at the last check, sorted: defective clusters whose dual fan is two or more
-  /// closed cycles (a band round a thin feature).
-  const std::vector<int32_t>& rings() const { return rings_; }
+  /// The rings among the clusters on defects at the last check, sorted by cluster.
+  const std::vector<Ring>& rings() const { return rings_; }
 
  private:
   std::vector<int32_t> check(std::span<const int32_t> labels, bool all);
@@ -66,7 +65,7 @@ class DefectTracker {
   uint64_t defect_vertices_ = 0;
   uint64_t unjoined_pairs_ = 0;
   uint32_t strip_vertices_ = 0;
-  std::vector<int32_t> rings_;
+  std::vector<Ring> rings_;
 };
 
 }  // namespace streamcvd::detail

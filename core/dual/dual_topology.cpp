@@ -267,9 +267,25 @@ bool fan_defective(uint32_t x, std::span<const Face> faces, FanScratch& scratch)
   return a == b;
 }
 
-uint32_t closed_fan_count(uint32_t x, std::span<const Face> faces, FanScratch& scratch) {
+std::vector<std::vector<uint32_t>> closed_fans(uint32_t x, std::span<const Face> faces, FanScratch& scratch) {
   const FanShape shape = fan_shape(x, faces, scratch);
-  return shape.edges_manifold && shape.closed ? shape.fans : 0;
+  if (!shape.edges_manifold || !shape.closed) return {};
+  // Faces by fan (the root of each face in fan_shape's union-find), then each fan's link.
+  std::vector<std::pair<uint32_t, uint32_t>> fan_of;  // (root, face)
+  for (uint32_t i = 0; i < faces.size(); ++i) {
+    uint32_t r = i;
+    while (scratch.parent[r] != r) r = scratch.parent[r];
+    fan_of.push_back({r, i});
+  }
+  std::sort(fan_of.begin(), fan_of.end());
+  std::vector<std::vector<uint32_t>> fans;
+  for (size_t i = 0; i < fan_of.size(); ++i) {
+    if (i == 0 || fan_of[i].first != fan_of[i - 1].first) fans.emplace_back();
+    for (uint32_t y : faces[fan_of[i].second])
+      if (y != x) fans.back().push_back(y);
+  }
+  for (std::vector<uint32_t>& link : fans) sort_unique(link);
+  return fans;
 }
 
 std::vector<FanVerdict> check_fan_csr(std::span<const Face> faces, std::span<const uint32_t> ids,

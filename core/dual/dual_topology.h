@@ -114,10 +114,10 @@ struct FanScratch {
 /// O(n log n) for n faces.
 bool fan_defective(uint32_t x, std::span<const Face> fan, FanScratch& scratch);
 
-/// The number of fans round vertex x when every edge at x is in two faces, one each way (0
-/// otherwise): 2 or more for a pinch, e.g. the dual vertex of a cluster ringing a thin
-/// feature. O(n log n) for n faces.
-uint32_t closed_fan_count(uint32_t x, std::span<const Face> fan, FanScratch& scratch);
+/// The fans round vertex x, each as its link vertices (sorted), when every edge at x is in two
+/// faces, one each way (none otherwise): two or more for a pinch, e.g. the dual vertex of a
+/// cluster ringing a thin feature. O(n log n) for n faces.
+std::vector<std::vector<uint32_t>> closed_fans(uint32_t x, std::span<const Face> fan, FanScratch& scratch);
 
 struct FanVerdict {
   uint32_t vertex = 0;

@@ -5,6 +5,7 @@
 // Internal to core/dual. Not thread-safe: one repair loop owns them.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <utility>
@@ -15,6 +16,14 @@
 #include "streamcvd/core/mesh/mesh_view.h"
 
 namespace streamcvd::detail {
+
+/// A defective cluster whose dual vertex is two or more closed fans: a band round a thin feature
+/// (DefectTracker::rings). `sides`: the clusters of its two largest fans, sorted (ids ≥ K are
+/// strip vertices).
+struct Ring {
+  int32_t cluster = -1;
+  std::array<std::vector<int32_t>, 2> sides;
+};
 
 struct LabelChange {
   uint32_t vertex;

@@ -162,14 +162,14 @@ std::vector<std::vector<uint32_t>> two_longest_arcs(const MeshView& mesh, std::s
 //   parts themselves, the halves would be two bands again (elephant → 100: a 6-member half
 //   between two clusters, dissolved back, 40 rounds running).
 // Paths across a band (its frontier in two parts or more), `count` of them, from its largest
-// frontier part to the second (for a ring, from its members next to the clusters of its first
-// side to those next to its second: a ring one member wide somewhere has its frontier in one
-// part, and the sides still tell where to cut across): the shortest one, then each next from the member of the first
-// part farthest from the paths so far, kept apart from them. Parts grown from the paths each
-// hold one, so each reaches both frontier parts: cuts across. (Parts grown from far-apart
-// points of one frontier part need not: the far end of a band longer than it is round lies
-// at equal hop distance from both and goes to one of them.) Fewer than `count` when the band
-// is too narrow for them. O(count · cluster size · log cluster size).
+// frontier part to the second: the shortest one, then each next from the member of the first
+// part farthest from the paths so far, kept apart from them. For a ring, the parts are its
+// members next to the clusters of its first side and of its second: a ring one member wide
+// somewhere has its frontier in one part, and the sides still tell where to cut across.
+// Parts grown from the paths each hold one, so each reaches both frontier parts: cuts across.
+// (Parts grown from far-apart points of one frontier part need not: the far end of a band
+// longer than it is round lies at equal hop distance from both and goes to one of them.)
+// Fewer than `count` when the band is too narrow for them. O(count · cluster size · log).
 std::vector<std::vector<uint32_t>> paths_across_band(const MeshView& mesh, std::span<const int32_t> labels,
                                                      std::span<const uint32_t> members, size_t count,
                                                      SplitScratch& scratch, const Ring* ring) {

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <set>
 #include <vector>
 
@@ -140,6 +141,50 @@ TEST(HoleClosing, ASlitClosesByATriangulationOfItsRing) {
     EXPECT_TRUE(built.count(f)) << f[0] << " " << f[1] << " " << f[2];
   }
   EXPECT_GE(cluster_faces, 8u);  // a ring of 10 clusters: 8 triangles
+}
+
+TEST(HoleClosing, ADiagonalOfAHoleClosedBeforeIsBarred) {
+  // The slit's ring of 10 clusters, triangulated once freely and once with one of its
+  // diagonals taken by an earlier hole: two holes closed with the same diagonal would give
+  // that dual edge four faces (dragon → 1000: two holes side by side, 8 repair rounds).
+  const MeshStore store = unrenumbered(slit_grid());
+  const MeshView m = store.view();
+  const int blocks = kSide / kBlock + 1;
+  const std::vector<int32_t> labels = block_labels(m.vertex_count(), kSide, blocks);
+  const BoundaryLoops loops = find_boundary_loops(m);
+  std::vector<uint32_t> inner;  // the slit's loop: the one off the grid's border
+  for (size_t l = 0; l + 1 < loops.offsets.size() && inner.empty(); ++l) {
+    std::span<const uint32_t> loop(loops.vertices.data() + loops.offsets[l], loops.offsets[l + 1] - loops.offsets[l]);
+    const float* p = &m.positions[3 * size_t(loop[0])];
+    if (p[0] > 0 && p[0] < 1 && p[1] > 0 && p[1] < 1) inner.assign(loop.begin(), loop.end());
+  }
+  ASSERT_FALSE(inner.empty());
+  std::vector<uint32_t> changes;
+  std::vector<int32_t> ring;
+  for (uint32_t k = 0; k < inner.size(); ++k) {
+    const int32_t a = labels[inner[k]], b = labels[inner[(k + 1) % inner.size()]];
+    if (a != b) changes.push_back(k), ring.push_back(b);
+  }
+  ASSERT_EQ(ring.size(), 10u);
+  auto diagonals = [&](const std::vector<std::array<uint32_t, 3>>& triangles) {
+    std::set<uint64_t> out;
+    for (const auto& t : triangles)
+      for (int k = 0; k < 3; ++k) {
+        const auto i = std::find(ring.begin(), ring.end(), int32_t(t[k])) - ring.begin();
+        const auto j = std::find(ring.begin(), ring.end(), int32_t(t[(k + 1) % 3])) - ring.begin();
+        const auto gap = std::abs(i - j);
+        if (gap != 1 && gap != int(ring.size()) - 1) out.insert(dual::cluster_pair_key(t[k], t[(k + 1) % 3]));
+      }
+    return out;
+  };
+  const auto free = dual::triangulate_hole_ring(m, inner, changes, ring, labels);
+  ASSERT_EQ(free.size(), 8u);
+  const std::set<uint64_t> used = diagonals(free);
+  ASSERT_EQ(used.size(), 7u);
+  const std::vector<uint64_t> taken = {*used.begin()};
+  const auto barred = dual::triangulate_hole_ring(m, inner, changes, ring, labels, taken);
+  ASSERT_EQ(barred.size(), 8u) << "the ring has other triangulations";
+  EXPECT_FALSE(diagonals(barred).count(taken[0]));
 }
 
 TEST(HoleClosing, ALoopAroundAllOfAThinPieceIsNoHole) {

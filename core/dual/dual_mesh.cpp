@@ -127,10 +127,13 @@ uint32_t add_strip_vertex(DualMesh& dual, const float* p, std::span<const uint32
 // below the closing one) whose ring has no such triangulation gets a fan from a vertex at the
 // loop's centroid. A cluster met twice encloses the clusters between its two stretches: no disc
 // over the hole has it as one vertex (it would be pinched), so such a loop keeps its strip:
-// returns false.
+// returns false. `diagonals`: the cluster pairs joined across the holes closed so far (sorted;
+// dual::cluster_pair_key), barred from this one and extended by it (dragon → 1000: two holes
+// side by side closed with the same diagonal, a dual edge with four faces, which the repair
+// chased round the two rims for 8 rounds).
 bool close_hole(const MeshView& mesh, std::span<const uint32_t> loop, std::span<const uint32_t> changes,
                 std::span<const int32_t> labels, std::span<const uint32_t> output_of_cluster, bool narrow,
-                DualMesh& dual, std::vector<dual::Face>& faces) {
+                std::vector<uint64_t>& diagonals, DualMesh& dual, std::vector<dual::Face>& faces) {
   const size_t n = loop.size(), m = changes.size();
   std::vector<int32_t> ring(m);
   for (size_t t = 0; t < m; ++t) ring[t] = labels[loop[(changes[t] + 1) % n]];
@@ -141,10 +144,16 @@ bool close_hole(const MeshView& mesh, std::span<const uint32_t> loop, std::span<
     faces.push_back(dual::rotate_smallest_first(output_of_cluster[ring[0]], output_of_cluster[ring[2]], output_of_cluster[ring[1]]));
     return true;
   }
-  const auto triangles = dual::triangulate_hole_ring(mesh, loop, changes, ring, labels);
-  for (const auto& t : triangles)
+  const auto triangles = dual::triangulate_hole_ring(mesh, loop, changes, ring, labels, diagonals);
+  for (const auto& t : triangles) {
     faces.push_back(dual::rotate_smallest_first(output_of_cluster[t[0]], output_of_cluster[t[1]], output_of_cluster[t[2]]));
-  if (!triangles.empty()) return true;
+    // Ring edges join clusters that meet along the loop, which no diagonal may join anyway.
+    for (int k = 0; k < 3; ++k) diagonals.push_back(dual::cluster_pair_key(t[k], t[(k + 1) % 3]));
+  }
+  if (!triangles.empty()) {
+    dual::sort_unique(diagonals);
+    return true;
+  }
   if (!narrow) return false;
   const float* P = mesh.positions.data();
   double c[3] = {0, 0, 0};
@@ -166,6 +175,7 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
                          const DualMeshOptions& options, DualMesh& dual, std::vector<dual::Face>& faces) {
   const float* P = mesh.positions.data();
   dual.loops_skipped = loops.skipped;
+  std::vector<uint64_t> diagonals;  // of the holes closed so far (close_hole)
   for (size_t l = 0; l + 1 < loops.offsets.size(); ++l) {
     std::span<const uint32_t> loop(loops.vertices.data() + loops.offsets[l], loops.offsets[l + 1] - loops.offsets[l]);
     const size_t n = loop.size();
@@ -200,7 +210,7 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
     if (all_single) continue;
     const bool narrow = options.close_hole_diameter > 0 && dual::diameter_below(mesh.positions, loop, options.close_hole_diameter);
     const bool slit = !narrow && options.close_hole_width > 0 && dual::loop_width(mesh.positions, loop) < options.close_hole_width;
-    if ((narrow || slit) && close_hole(mesh, loop, changes, labels, output_of_cluster, narrow, dual, faces)) {
+    if ((narrow || slit) && close_hole(mesh, loop, changes, labels, output_of_cluster, narrow, diagonals, dual, faces)) {
       ++dual.holes_closed;
       continue;
     }

@@ -91,11 +91,17 @@ bool ring_neighbours(const MeshView& mesh, std::span<const uint32_t> loop, std::
 std::vector<std::array<uint32_t, 3>> triangulate_hole_ring(const MeshView& mesh, std::span<const uint32_t> loop,
                                                            std::span<const uint32_t> changes,
                                                            std::span<const int32_t> ring,
-                                                           std::span<const int32_t> labels) {
+                                                           std::span<const int32_t> labels,
+                                                           std::span<const uint64_t> taken) {
   const size_t m = ring.size(), n = loop.size();
   if (m < 3 || m > kMaxRing) return {};
   std::vector<uint8_t> adjacent;
   if (!ring_neighbours(mesh, loop, ring, labels, adjacent)) return {};
+  if (!taken.empty())
+    for (size_t i = 0; i < m; ++i)
+      for (size_t k = i + 1; k < m; ++k)
+        if (std::binary_search(taken.begin(), taken.end(), cluster_pair_key(uint32_t(ring[i]), uint32_t(ring[k]))))
+          adjacent[i * m + k] = adjacent[k * m + i] = 1;
   // Each ring cluster at the mean of the loop vertices it holds.
   std::vector<vec3::Vec3> at(m, {0, 0, 0});
   for (size_t t = 0; t < m; ++t) {

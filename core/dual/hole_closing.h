@@ -34,11 +34,19 @@ double loop_width(std::span<const float> xyz, std::span<const uint32_t> loop);
 /// dual faces around the hole (the ring runs against them). Clusters are found neighbours by a
 /// flood over the input vertices labelled with ring clusters, from the loop (O(their size)); the
 /// hole closes only when that flood also meets a cluster off the ring (the loop bounds a hole in
-/// a larger surface, not the whole of a thin piece). Empty when no such triangulation exists.
+/// a larger surface, not the whole of a thin piece). `taken`: cluster pairs (smaller id << 32 |
+/// larger, sorted) that are diagonals of holes closed before, barred too: two holes closed with
+/// the same diagonal give it four faces. Empty when no such triangulation exists.
 /// Deterministic, thread-safe (pure).
 std::vector<std::array<uint32_t, 3>> triangulate_hole_ring(const MeshView& mesh, std::span<const uint32_t> loop,
                                                            std::span<const uint32_t> changes,
                                                            std::span<const int32_t> ring,
-                                                           std::span<const int32_t> labels);
+                                                           std::span<const int32_t> labels,
+                                                           std::span<const uint64_t> taken = {});
+
+/// The key of the cluster pair {a, b} in triangulate_hole_ring's `taken`.
+inline uint64_t cluster_pair_key(uint32_t a, uint32_t b) {
+  return a < b ? uint64_t(a) << 32 | b : uint64_t(b) << 32 | a;
+}
 
 }  // namespace streamcvd::dual

@@ -74,6 +74,33 @@ TEST(ClusterSplit, ACutBetweenTheTwoArcsWhereAClusterMeetsItsNeighbour) {
   }
 }
 
+TEST(ClusterSplit, AShortArcBesideALongOneGetsAFairPartNotASliver) {
+  // Grid 30 × 20: A (0) left, B (1) right, C (2) a wedge across their frontier in rows 1–2, so
+  // A meets B along a one-row arc (row 0) and a long one (rows 3–19). Grown from the arcs by
+  // nearest hop, the short arc's part is a sliver of rows 0–1 that the next round cuts again.
+  const int nx = 30, ny = 20;
+  MeshStore store = MeshStore::build(make_grid(nx, ny).view());
+  const MeshView view = store.view();
+  std::vector<int32_t> labels(view.vertex_count());
+  for (uint32_t v = 0; v < view.vertex_count(); ++v) {
+    const long i = std::lround(view.positions[3 * v] * (nx - 1)), j = std::lround(view.positions[3 * v + 1] * (ny - 1));
+    labels[v] = (j == 1 || j == 2) && i >= 12 && i <= 17 ? 2 : i < 15 ? 0 : 1;
+  }
+  const std::vector<uint32_t> a = members_of(labels, 0);
+  detail::SplitScratch scratch;
+  const int32_t new_label = 3;
+  ASSERT_EQ(detail::split_cluster(view, labels, a, {&new_label, 1}, scratch, true), 1u);
+  auto row = [&](uint32_t v) { return int(std::lround(view.positions[3 * v + 1] * (ny - 1))); };
+  const std::set<int32_t> short_arc = labels_next_to(view, labels, a, 1, [&](uint32_t v) { return row(v) == 0; });
+  const std::set<int32_t> long_arc = labels_next_to(view, labels, a, 1, [&](uint32_t v) { return row(v) >= 3; });
+  ASSERT_EQ(short_arc.size(), 1u);
+  ASSERT_EQ(long_arc.size(), 1u);
+  EXPECT_NE(*short_arc.begin(), *long_arc.begin()) << "each part keeps one arc";
+  EXPECT_TRUE(clusters_connected(view, labels, 4));
+  const size_t part = size_t(std::count(labels.begin(), labels.end(), *short_arc.begin()));
+  EXPECT_GE(4 * 2 * part, a.size()) << "the short arc's part has " << part << " of " << a.size() << " members";
+}
+
 TEST(ClusterSplit, ABandRoundATubeIsCutAcrossNotAlongIt) {
   // Torus of 120 rings × 8: clusters of 12 rings each are bands round the tube, longer than
   // they are round, so a farthest-point split cuts them along the tube into two bands. A cut

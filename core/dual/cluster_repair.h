@@ -32,7 +32,8 @@ struct SplitScratch {
 /// arcs is instead cut in two parts grown from those arcs, and a band (its frontier in two
 /// parts) in new_labels.size() + 1 parts grown from as many paths across it (arcs are tried
 /// first only with one new label; more are asked for a ring, whose frontier parts are then
-/// its members next to either side of `ring`). A cluster in pieces (its
+/// its members next to either side of `ring`); a part under a quarter of the mean part size is
+/// regrown with the others, balanced by size. A cluster in pieces (its
 /// members not connected) instead gives new_labels[0] to the piece of the first member its
 /// first piece leaves out: one piece parted per call.
 /// Returns the number of new labels used (0: the cluster could not be split).

@@ -198,6 +198,55 @@ TEST(RepairLoop, ABandRoundATubeIsCutInThreeInOneRound) {
   EXPECT_EQ(std::count(sizes.begin(), sizes.end(), 0u), 0) << "two merges elsewhere keep the cluster count";
 }
 
+TEST(RepairLoop, ARingRoundASmallTipTakesTheTipInOneRound) {
+  // Capsule of 48 segments: the top cap above z = 2.8 in three clusters round the pole (a
+  // tip), one ring below it down to z = 2.1 (more members than the tip), and patches of the rest. The ring's dual vertex has
+  // two closed fans; its tip side meets only itself and the ring. Cut across, the part of the
+  // ring next to the tip stayed round it, shrinking a round at a time (dragon → 1000: a
+  // 102-member ring round two clusters of 5 and 7 members, 5 rounds); the tip joins the ring.
+  MeshStore store = MeshStore::build(make_capsule(48).view());
+  const MeshView view = store.view();
+  std::vector<int32_t> labels(view.vertex_count());
+  const int32_t ring = 0;
+  int32_t K = 1;
+  std::map<std::pair<long, long>, int32_t> patch;
+  for (uint32_t v = 0; v < view.vertex_count(); ++v) {
+    const float* p = &view.positions[3 * size_t(v)];
+    const double angle = std::atan2(p[1], p[0]) + M_PI;  // [0, 2π]
+    std::pair<long, long> key;
+    if (p[2] > 2.8f) key = {-1, std::min(2L, long(angle / (2 * M_PI / 3)))};
+    else if (p[2] > 2.1f) key = {-2, 0};
+    else key = {std::lround(std::floor((p[2] + 3.0) / 0.8)), std::min(3L, long(angle / (M_PI / 2)))};
+    if (key.first == -2) {
+      labels[v] = ring;
+      continue;
+    }
+    auto [it, fresh] = patch.try_emplace(key, K);
+    if (fresh) ++K;
+    labels[v] = it->second;
+  }
+  std::vector<uint32_t> tip_and_ring;
+  for (uint32_t v = 0; v < view.vertex_count(); ++v)
+    if (view.positions[3 * size_t(v) + 2] > 2.1f) tip_and_ring.push_back(v);
+  ItemData items = compute_item_data(view);
+  BoundaryLoops loops = find_boundary_loops(view);
+  ASSERT_GT(global_defects(view, labels, uint32_t(K), loops), 0u) << "the ring is a defect";
+  std::vector<uint8_t> adjustable(size_t(K), 1);
+  ClusteringReport report;
+  DefectRepairOptions options;
+  options.relax = false;
+  DefectRepairResult r =
+      repair_dual_defects(view, items, labels, uint32_t(K), adjustable, loops, options, report, ram_storage());
+  EXPECT_EQ(r.rounds, 1u);
+  EXPECT_EQ(global_defects(view, labels, uint32_t(K), loops), 0u);
+  std::set<int32_t> parts;
+  for (uint32_t v : tip_and_ring) parts.insert(labels[v]);
+  EXPECT_EQ(parts, std::set<int32_t>{ring}) << "the tip joins the ring: a cap";
+  EXPECT_TRUE(clusters_connected(view, labels, uint32_t(K)));
+  std::vector<uint32_t> sizes = dual::cluster_sizes(view, labels, uint32_t(K));
+  EXPECT_EQ(std::count(sizes.begin(), sizes.end(), 0u), 0) << "three splits elsewhere keep the cluster count";
+}
+
 TEST(RepairLoop, CleanClusteringNeedsNoRound) {
   MeshBuffers soup = make_icosphere(4);
   MeshStore store = MeshStore::build(soup.view());

@@ -73,6 +73,8 @@ class ClusterRepair {
   void neighbour_clusters(int32_t c, std::vector<int32_t>& out);
   std::span<const int32_t> neighbours_now(int32_t c, std::vector<int32_t>& fresh);
   uint32_t size_of(int32_t c);
+  void merge_tips(std::span<const Ring> rings, std::vector<int32_t>& free_ids, std::vector<int32_t>& touched,
+                  RepairRoundStats& stats);
 
   const MeshView& mesh_;
   const ItemData& items_;

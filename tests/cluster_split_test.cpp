@@ -30,6 +30,15 @@ std::vector<uint32_t> members_of(const std::vector<int32_t>& labels, int32_t c) 
   return m;
 }
 
+// Labels of a grid of nx × ny vertices by position (column i, row j): label_of(i, j). The store
+// orders vertices its own way, so the grid's indices do not tell where a vertex is.
+std::vector<int32_t> grid_labels(const MeshView& view, int nx, int ny, auto&& label_of) {
+  std::vector<int32_t> labels(view.vertex_count());
+  for (uint32_t v = 0; v < view.vertex_count(); ++v)
+    labels[v] = label_of(std::lround(view.positions[3 * v] * (nx - 1)), std::lround(view.positions[3 * v + 1] * (ny - 1)));
+  return labels;
+}
+
 // Labels of the members of `c`'s old vertices that lie next to a vertex labelled `y`.
 std::set<int32_t> labels_next_to(const MeshView& view, const std::vector<int32_t>& labels,
                                  std::span<const uint32_t> old_members, int32_t y, auto&& keep) {
@@ -42,21 +51,25 @@ std::set<int32_t> labels_next_to(const MeshView& view, const std::vector<int32_t
   return out;
 }
 
+// Cuts cluster 0 at a defect, its second part labelled 3; returns its members before the cut.
+std::vector<uint32_t> cut_cluster_zero(const MeshView& view, std::vector<int32_t>& labels) {
+  const std::vector<uint32_t> a = members_of(labels, 0);
+  detail::SplitScratch scratch;
+  const int32_t new_label = 3;
+  EXPECT_EQ(detail::split_cluster(view, labels, a, {&new_label, 1}, scratch, true), 1u);
+  return a;
+}
+
 TEST(ClusterSplit, ACutBetweenTheTwoArcsWhereAClusterMeetsItsNeighbour) {
   // Grid 20 × 10: A (0) left, B (1) right, C (2) a wedge across their frontier in rows 4–5, so
   // A meets B along two arcs (rows 0–3 and 6–9): the dual edge A–B has four faces.
   const int nx = 20, ny = 10;
   MeshStore store = MeshStore::build(make_grid(nx, ny).view());
   const MeshView view = store.view();
-  std::vector<int32_t> labels(view.vertex_count());  // by position: the store orders vertices its own way
-  for (uint32_t v = 0; v < view.vertex_count(); ++v) {
-    const long i = std::lround(view.positions[3 * v] * (nx - 1)), j = std::lround(view.positions[3 * v + 1] * (ny - 1));
-    labels[v] = (j == 4 || j == 5) && i >= 8 && i <= 11 ? 2 : i < 10 ? 0 : 1;
-  }
-  const std::vector<uint32_t> a = members_of(labels, 0);
-  detail::SplitScratch scratch;
-  const int32_t new_label = 3;
-  ASSERT_EQ(detail::split_cluster(view, labels, a, {&new_label, 1}, scratch, true), 1u);
+  std::vector<int32_t> labels = grid_labels(view, nx, ny, [](long i, long j) {
+    return (j == 4 || j == 5) && i >= 8 && i <= 11 ? 2 : i < 10 ? 0 : 1;
+  });
+  const std::vector<uint32_t> a = cut_cluster_zero(view, labels);
   auto row = [&](uint32_t v) { return int(std::lround(view.positions[3 * v + 1] * (ny - 1))); };
   const std::set<int32_t> top = labels_next_to(view, labels, a, 1, [&](uint32_t v) { return row(v) <= 3; });
   const std::set<int32_t> bottom = labels_next_to(view, labels, a, 1, [&](uint32_t v) { return row(v) >= 6; });
@@ -81,15 +94,10 @@ TEST(ClusterSplit, AShortArcBesideALongOneGetsAFairPartNotASliver) {
   const int nx = 30, ny = 20;
   MeshStore store = MeshStore::build(make_grid(nx, ny).view());
   const MeshView view = store.view();
-  std::vector<int32_t> labels(view.vertex_count());
-  for (uint32_t v = 0; v < view.vertex_count(); ++v) {
-    const long i = std::lround(view.positions[3 * v] * (nx - 1)), j = std::lround(view.positions[3 * v + 1] * (ny - 1));
-    labels[v] = (j == 1 || j == 2) && i >= 12 && i <= 17 ? 2 : i < 15 ? 0 : 1;
-  }
-  const std::vector<uint32_t> a = members_of(labels, 0);
-  detail::SplitScratch scratch;
-  const int32_t new_label = 3;
-  ASSERT_EQ(detail::split_cluster(view, labels, a, {&new_label, 1}, scratch, true), 1u);
+  std::vector<int32_t> labels = grid_labels(view, nx, ny, [](long i, long j) {
+    return (j == 1 || j == 2) && i >= 12 && i <= 17 ? 2 : i < 15 ? 0 : 1;
+  });
+  const std::vector<uint32_t> a = cut_cluster_zero(view, labels);
   auto row = [&](uint32_t v) { return int(std::lround(view.positions[3 * v + 1] * (ny - 1))); };
   const std::set<int32_t> short_arc = labels_next_to(view, labels, a, 1, [&](uint32_t v) { return row(v) == 0; });
   const std::set<int32_t> long_arc = labels_next_to(view, labels, a, 1, [&](uint32_t v) { return row(v) >= 3; });
@@ -137,12 +145,10 @@ TEST(ClusterSplit, AClusterInPiecesIsCutAlongItsPieces) {
   const int nx = 20, ny = 20;
   MeshStore store = MeshStore::build(make_grid(nx, ny).view());
   const MeshView view = store.view();
-  std::vector<int32_t> labels(view.vertex_count());
-  for (uint32_t v = 0; v < view.vertex_count(); ++v) {
-    const long i = std::lround(view.positions[3 * v] * (nx - 1)), j = std::lround(view.positions[3 * v + 1] * (ny - 1));
+  std::vector<int32_t> labels = grid_labels(view, nx, ny, [](long i, long j) {
     const bool square_a = i >= 3 && i <= 6 && j >= 3 && j <= 6, square_b = i >= 12 && i <= 15 && j >= 12 && j <= 15;
-    labels[v] = square_a || square_b ? 1 : 0;
-  }
+    return square_a || square_b ? 1 : 0;
+  });
   ASSERT_FALSE(clusters_connected(view, labels, 2));
   for (const bool at_defect : {false, true}) {
     std::vector<int32_t> split = labels;

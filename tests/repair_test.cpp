@@ -31,6 +31,38 @@ size_t global_defects(const MeshView& view, const std::vector<int32_t>& labels, 
   return find_manifold_defects(dual.mesh.view()).size();
 }
 
+// Defects of the dual of `labels`, strips included (the boundary loops found here).
+size_t defects_of(const MeshView& view, const std::vector<int32_t>& labels, uint32_t K) {
+  return global_defects(view, labels, K, find_boundary_loops(view));
+}
+
+// The repair loop on `labels` (K clusters, all adjustable) without its final relaxation.
+DefectRepairResult repair_unrelaxed(const MeshView& view, std::vector<int32_t>& labels, uint32_t K) {
+  ItemData items = compute_item_data(view);
+  BoundaryLoops loops = find_boundary_loops(view);
+  std::vector<uint8_t> adjustable(K, 1);
+  ClusteringReport report;
+  DefectRepairOptions options;
+  options.relax = false;
+  return repair_dual_defects(view, items, labels, K, adjustable, loops, options, report, ram_storage());
+}
+
+// Labels from a key of each vertex's position: key `own` gives label 0, every other key its own
+// label from 1 on, by first appearance. Returns the labels and the cluster count K.
+std::pair<std::vector<int32_t>, int32_t> labels_by_key(const MeshView& view, std::pair<long, long> own, auto&& key_of) {
+  std::vector<int32_t> labels(view.vertex_count());
+  std::map<std::pair<long, long>, int32_t> ids = {{own, 0}};
+  for (uint32_t v = 0; v < view.vertex_count(); ++v)
+    labels[v] = ids.try_emplace(key_of(&view.positions[3 * size_t(v)]), int32_t(ids.size())).first->second;
+  return {labels, int32_t(ids.size())};
+}
+
+// Clusters of K left with no member.
+long empty_clusters(const MeshView& view, const std::vector<int32_t>& labels, uint32_t K) {
+  std::vector<uint32_t> sizes = dual::cluster_sizes(view, labels, K);
+  return std::count(sizes.begin(), sizes.end(), 0u);
+}
+
 // Labels of a random clustering: region growing from random seeds (many small, twisted
 // clusters, so the dual has defects), without any minimisation.
 std::vector<int32_t> rough_clustering(const MeshView& view, const ItemData& items, uint32_t K, uint64_t seed) {
@@ -147,8 +179,7 @@ TEST(RepairLoop, JoinsAGroupRingedByOneCluster) {
   EXPECT_TRUE(g.unjoined().empty());
   EXPECT_EQ(global_defects(g.view, g.labels, RingedGroup::K, loops), 0u);
   EXPECT_TRUE(clusters_connected(g.view, g.labels, RingedGroup::K));
-  std::vector<uint32_t> sizes = dual::cluster_sizes(g.view, g.labels, RingedGroup::K);
-  EXPECT_EQ(std::count(sizes.begin(), sizes.end(), 0u), 0) << "the cluster count must stay K";
+  EXPECT_EQ(empty_clusters(g.view, g.labels, RingedGroup::K), 0) << "the cluster count must stay K";
 }
 
 TEST(RepairLoop, ABandRoundATubeIsCutInThreeInOneRound) {
@@ -160,91 +191,53 @@ TEST(RepairLoop, ABandRoundATubeIsCutInThreeInOneRound) {
   MeshStore store = MeshStore::build(make_torus(rings, segments).view());
   const MeshView view = store.view();
   auto angle_index = [](double a, int n) { return std::lround((a < 0 ? a + 2 * M_PI : a) / (2 * M_PI) * n) % n; };
-  std::vector<int32_t> labels(view.vertex_count());
   const int32_t band = 0;
-  int32_t K = 1;
-  std::map<std::pair<long, long>, int32_t> patch;
-  for (uint32_t v = 0; v < view.vertex_count(); ++v) {
-    const float* p = &view.positions[3 * size_t(v)];
+  auto [labels, K] = labels_by_key(view, {-1, -1}, [&](const float* p) -> std::pair<long, long> {
     const long ring = angle_index(std::atan2(p[1], p[0]), rings);
     const long segment = angle_index(std::atan2(p[2], std::hypot(p[0], p[1]) - 1.0), segments);
-    if (ring >= 60 && ring < 66) {
-      labels[v] = band;
-      continue;
-    }
-    auto [it, fresh] = patch.try_emplace({ring / 6, segment / 4}, K);
-    if (fresh) ++K;
-    labels[v] = it->second;
-  }
+    if (ring >= 60 && ring < 66) return {-1, -1};
+    return {ring / 6, segment / 4};
+  });
   ASSERT_EQ(K, 1 + 19 * 4);
-  ItemData items = compute_item_data(view);
-  BoundaryLoops loops = find_boundary_loops(view);
-  ASSERT_GT(global_defects(view, labels, uint32_t(K), loops), 0u);
+  ASSERT_GT(defects_of(view, labels, uint32_t(K)), 0u);
   std::vector<uint32_t> band_members;
   for (uint32_t v = 0; v < view.vertex_count(); ++v)
     if (labels[v] == band) band_members.push_back(v);
-  std::vector<uint8_t> adjustable(size_t(K), 1);
-  ClusteringReport report;
-  DefectRepairOptions options;
-  options.relax = false;
-  DefectRepairResult r =
-      repair_dual_defects(view, items, labels, uint32_t(K), adjustable, loops, options, report, ram_storage());
-  EXPECT_EQ(r.rounds, 1u);
-  EXPECT_EQ(global_defects(view, labels, uint32_t(K), loops), 0u);
+  EXPECT_EQ(repair_unrelaxed(view, labels, uint32_t(K)).rounds, 1u);
+  EXPECT_EQ(defects_of(view, labels, uint32_t(K)), 0u);
   std::set<int32_t> parts;
   for (uint32_t v : band_members) parts.insert(labels[v]);
   EXPECT_EQ(parts.size(), 3u) << "the band is cut in three";
-  std::vector<uint32_t> sizes = dual::cluster_sizes(view, labels, uint32_t(K));
-  EXPECT_EQ(std::count(sizes.begin(), sizes.end(), 0u), 0) << "two merges elsewhere keep the cluster count";
+  EXPECT_EQ(empty_clusters(view, labels, uint32_t(K)), 0) << "two merges elsewhere keep the cluster count";
 }
 
 TEST(RepairLoop, ARingRoundASmallTipTakesTheTipInOneRound) {
   // Capsule of 48 segments: the top cap above z = 2.8 in three clusters round the pole (a
-  // tip), one ring below it down to z = 2.1 (more members than the tip), and patches of the rest. The ring's dual vertex has
-  // two closed fans; its tip side meets only itself and the ring. Cut across, the part of the
-  // ring next to the tip stayed round it, shrinking a round at a time (dragon → 1000: a
-  // 102-member ring round two clusters of 5 and 7 members, 5 rounds); the tip joins the ring.
+  // tip), one ring below it down to z = 2.1 (more members than the tip), and patches of the
+  // rest. The ring's dual vertex has two closed fans; its tip side meets only itself and the
+  // ring. Cut across, the part of the ring next to the tip stayed round it, shrinking a round
+  // at a time (dragon → 1000: a 102-member ring round two clusters of 5 and 7 members, 5
+  // rounds); the tip joins the ring.
   MeshStore store = MeshStore::build(make_capsule(48).view());
   const MeshView view = store.view();
-  std::vector<int32_t> labels(view.vertex_count());
   const int32_t ring = 0;
-  int32_t K = 1;
-  std::map<std::pair<long, long>, int32_t> patch;
-  for (uint32_t v = 0; v < view.vertex_count(); ++v) {
-    const float* p = &view.positions[3 * size_t(v)];
+  auto [labels, K] = labels_by_key(view, {-2, 0}, [](const float* p) -> std::pair<long, long> {
     const double angle = std::atan2(p[1], p[0]) + M_PI;  // [0, 2π]
-    std::pair<long, long> key;
-    if (p[2] > 2.8f) key = {-1, std::min(2L, long(angle / (2 * M_PI / 3)))};
-    else if (p[2] > 2.1f) key = {-2, 0};
-    else key = {std::lround(std::floor((p[2] + 3.0) / 0.8)), std::min(3L, long(angle / (M_PI / 2)))};
-    if (key.first == -2) {
-      labels[v] = ring;
-      continue;
-    }
-    auto [it, fresh] = patch.try_emplace(key, K);
-    if (fresh) ++K;
-    labels[v] = it->second;
-  }
+    if (p[2] > 2.8f) return {-1, std::min(2L, long(angle / (2 * M_PI / 3)))};
+    if (p[2] > 2.1f) return {-2, 0};
+    return {std::lround(std::floor((p[2] + 3.0) / 0.8)), std::min(3L, long(angle / (M_PI / 2)))};
+  });
   std::vector<uint32_t> tip_and_ring;
   for (uint32_t v = 0; v < view.vertex_count(); ++v)
     if (view.positions[3 * size_t(v) + 2] > 2.1f) tip_and_ring.push_back(v);
-  ItemData items = compute_item_data(view);
-  BoundaryLoops loops = find_boundary_loops(view);
-  ASSERT_GT(global_defects(view, labels, uint32_t(K), loops), 0u) << "the ring is a defect";
-  std::vector<uint8_t> adjustable(size_t(K), 1);
-  ClusteringReport report;
-  DefectRepairOptions options;
-  options.relax = false;
-  DefectRepairResult r =
-      repair_dual_defects(view, items, labels, uint32_t(K), adjustable, loops, options, report, ram_storage());
-  EXPECT_EQ(r.rounds, 1u);
-  EXPECT_EQ(global_defects(view, labels, uint32_t(K), loops), 0u);
+  ASSERT_GT(defects_of(view, labels, uint32_t(K)), 0u) << "the ring is a defect";
+  EXPECT_EQ(repair_unrelaxed(view, labels, uint32_t(K)).rounds, 1u);
+  EXPECT_EQ(defects_of(view, labels, uint32_t(K)), 0u);
   std::set<int32_t> parts;
   for (uint32_t v : tip_and_ring) parts.insert(labels[v]);
   EXPECT_EQ(parts, std::set<int32_t>{ring}) << "the tip joins the ring: a cap";
   EXPECT_TRUE(clusters_connected(view, labels, uint32_t(K)));
-  std::vector<uint32_t> sizes = dual::cluster_sizes(view, labels, uint32_t(K));
-  EXPECT_EQ(std::count(sizes.begin(), sizes.end(), 0u), 0) << "three splits elsewhere keep the cluster count";
+  EXPECT_EQ(empty_clusters(view, labels, uint32_t(K)), 0) << "three splits elsewhere keep the cluster count";
 }
 
 TEST(RepairLoop, CleanClusteringNeedsNoRound) {

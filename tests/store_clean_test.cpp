@@ -7,9 +7,12 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "streamcvd/core/measure/shapes.h"
@@ -374,6 +377,66 @@ TEST(StoreClean, DefectiveInputsRemeshToManifoldOutputs) {
       EXPECT_EQ(j["clustering"]["defect_faces_removed"].get<uint64_t>(), 0u);
       EXPECT_TRUE(j["cleaning"]["rebuilt"].get<bool>());
     }
+  }
+  fs::remove_all(dir);
+}
+
+// A crude decimation as scanners' tools make it: vertices snapped to a grid of `cells` along the
+// longest side of the box, one vertex per cell (the mean), faces that keep three cells. Gives
+// non-manifold edges and vertices and duplicate faces, as the statue decimation of issue 16 had.
+MeshBuffers vertex_clustered(const MeshBuffers& m, int cells) {
+  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t i = 0; i < m.positions.size(); ++i) {
+    lo[i % 3] = std::min(lo[i % 3], m.positions[i]);
+    hi[i % 3] = std::max(hi[i % 3], m.positions[i]);
+  }
+  const double h = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]}) / cells;
+  std::map<std::array<long, 3>, uint32_t> cell_id;
+  std::vector<uint32_t> cell_of(m.vertex_count());
+  for (uint32_t v = 0; v < m.vertex_count(); ++v) {
+    std::array<long, 3> key;
+    for (int k = 0; k < 3; ++k) key[k] = long(std::floor((m.positions[3 * v + k] - lo[k]) / h));
+    cell_of[v] = cell_id.try_emplace(key, uint32_t(cell_id.size())).first->second;
+  }
+  MeshBuffers out;
+  out.positions.assign(3 * cell_id.size(), 0.0f);
+  std::vector<uint32_t> count(cell_id.size(), 0);
+  for (uint32_t v = 0; v < m.vertex_count(); ++v) {
+    ++count[cell_of[v]];
+    for (int k = 0; k < 3; ++k) out.positions[3 * cell_of[v] + k] += m.positions[3 * v + k];
+  }
+  for (size_t i = 0; i < out.positions.size(); ++i) out.positions[i] /= float(count[i / 3]);
+  for (size_t f = 0; f < m.triangles.size(); f += 3) {
+    const uint32_t a = cell_of[m.triangles[f]], b = cell_of[m.triangles[f + 1]], c = cell_of[m.triangles[f + 2]];
+    if (a != b && b != c && a != c) out.triangles.insert(out.triangles.end(), {a, b, c});
+  }
+  return out;
+}
+
+TEST(StoreClean, AVertexClusteredScanCleansToAManifoldAndRemeshesWithoutDeletion) {
+  // Fertility snapped to 12 cells: cuts whose sheets stay joined round both ends of their edge
+  // (they cannot come apart at a vertex) were left non-manifold (4 edges, 8 vertices), and the
+  // repair looped on them to its 40-round cap, then deleted faces (N = 100: 36, exit 4).
+  const MeshBuffers crude = vertex_clustered(read_mesh(test::data_path("fertility.off.zst")), 12);
+  StoreBuildReport r;
+  build(crude, r);
+  ASSERT_GT(r.input_topology.nonmanifold_edges, 0u);
+  EXPECT_EQ(r.cleaning.cleaned.nonmanifold_edges, 0u);
+  EXPECT_EQ(r.cleaning.cleaned.nonmanifold_vertices, 0u);
+  if (!test::cli_available()) GTEST_SKIP() << "no CLI";
+  const fs::path dir = test::temp_dir("store_clean_crude");
+  const std::string in = (dir / "crude.ply").string();
+  write_mesh(in, crude.view());
+  for (const char* n : {"100", "300"}) {
+    SCOPED_TRACE(std::string("N=") + n);
+    const std::string out = (dir / "out.ply").string(), report = (dir / "r.json").string();
+    const test::CliResult run =
+        test::run_cli({"remesh", in, "-o", out, "-n", n, "--report", report, "--threads", "1", "-q"});
+    ASSERT_EQ(run.exit_code, 0) << run.describe();
+    const nlohmann::json j = nlohmann::json::parse(test::slurp(report));
+    EXPECT_TRUE(j["checks"]["all_ok"].get<bool>()) << j["checks"].dump();
+    EXPECT_LE(j["clustering"]["repair_rounds"].get<uint64_t>(), 10u);
+    EXPECT_EQ(j["clustering"]["defect_faces_removed"].get<uint64_t>(), 0u);
   }
   fs::remove_all(dir);
 }

@@ -20,9 +20,10 @@
 //     kept; a cut that did not come apart gets another round, dropping its unpaired faces.
 // The cleaned soup (the store's vertices, then the copies; its faces in store order, dropped or
 // rewritten) is streamed into the store builder again: the cleaned store is an ordinary store.
-// A cut whose two ends stay joined around both of them (an unpaired face reaching the surface
-// again through manifold edges at each end) cannot come apart at a vertex: that edge stays
-// non-manifold, and the cleaned figures count it.
+// A cut whose two ends stay joined around both of them (an unpaired face, or a second sheet,
+// reaching the surface again through manifold edges at each end) cannot come apart at a vertex:
+// the later round drops its unpaired faces and every pair but the first on that edge (a hole
+// of a face or two rather than a non-manifold edge, which the dual could never make manifold).
 #pragma once
 
 #include <cstdint>
@@ -55,8 +56,9 @@ struct CleaningPlan {
 
 /// Plans the cleaning of `mesh` (a store view) and adds its counts to `counts` (not `cleaned`).
 /// With drop_unpaired (a later round, on a store cleaned once whose cuts left an edge with more
-/// than two faces: an unpaired face still joined to the surface around both ends) the faces a
-/// cut leaves without a partner are dropped instead (a hole of one face rather than a
+/// than two faces: an unpaired face or a second sheet still joined to the surface around both
+/// ends) the faces a cut leaves without a partner are dropped instead, and on an edge with two
+/// pairs or more those of every pair but its first (a hole of a face or two rather than a
 /// non-manifold edge). Chunk range by chunk range, TBB-parallel; the plan depends on neither the thread
 /// count nor the memory limit. O(V + F) time (fans of flagged vertices sorted); memory O(copies +
 /// moved corners) besides per-thread fan scratch: nothing O(V) or O(F). Thread-safe (pure).

@@ -211,6 +211,48 @@ TEST(RepairLoop, ABandRoundATubeIsCutInThreeInOneRound) {
   EXPECT_EQ(empty_clusters(view, labels, uint32_t(K)), 0) << "two merges elsewhere keep the cluster count";
 }
 
+TEST(RepairLoop, MergesForASplitAreFoundPastTheLightestClustersWhenTheseRefuse) {
+  // The torus band of the test above, cut in three, needs two ids, freed by merges of light
+  // pairs. Twelve small spheres of four clusters each (a tetrahedron of clusters: merging any
+  // pair would leave two faces on three clusters) hold the 48 lightest clusters, more than the
+  // first batch of candidates (8 · 2 + 16): every one refuses, and without a second batch the
+  // band was never cut (crude dragon decimation → 200,000: 28 rounds to the cap).
+  const int rings = 120, segments = 16;
+  MeshBuffers soup = make_torus(rings, segments);
+  const MeshBuffers ball = make_icosphere(1, 0.05f);
+  for (int k = 0; k < 12; ++k) {
+    const uint32_t base = soup.vertex_count();
+    for (size_t i = 0; i < ball.positions.size(); ++i)
+      soup.positions.push_back(ball.positions[i] + (i % 3 == 2 ? 3.0f + 0.2f * k : 0.0f));
+    for (uint32_t t : ball.triangles) soup.triangles.push_back(base + t);
+  }
+  MeshStore store = MeshStore::build(soup.view());
+  const MeshView view = store.view();
+  auto angle_index = [](double a, int n) { return std::lround((a < 0 ? a + 2 * M_PI : a) / (2 * M_PI) * n) % n; };
+  auto [labels, K] = labels_by_key(view, {-1, -1}, [&](const float* p) -> std::pair<long, long> {
+    if (p[2] > 2.0f) {  // a sphere: which of four tetrahedron directions is nearest, per sphere
+      const long sphere = std::lround((p[2] - 3.0f) / 0.2f);
+      const double z = p[2] - (3.0 + 0.2 * sphere);
+      const double d[4][3] = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}};
+      long best = 0;
+      for (long k = 1; k < 4; ++k)
+        if (d[k][0] * p[0] + d[k][1] * p[1] + d[k][2] * z > d[best][0] * p[0] + d[best][1] * p[1] + d[best][2] * z)
+          best = k;
+      return {1000 + sphere, best};
+    }
+    const long ring = angle_index(std::atan2(p[1], p[0]), rings);
+    const long segment = angle_index(std::atan2(p[2], std::hypot(p[0], p[1]) - 1.0), segments);
+    if (ring >= 60 && ring < 66) return {-1, -1};
+    return {ring / 6, segment / 4};
+  });
+  ASSERT_EQ(K, 1 + 19 * 4 + 12 * 4);
+  const size_t before = defects_of(view, labels, uint32_t(K));
+  ASSERT_GT(before, 0u);
+  EXPECT_EQ(repair_unrelaxed(view, labels, uint32_t(K)).rounds, 1u);
+  EXPECT_EQ(defects_of(view, labels, uint32_t(K)), 0u) << before << " before";
+  EXPECT_EQ(empty_clusters(view, labels, uint32_t(K)), 0) << "two merges on the torus keep the cluster count";
+}
+
 TEST(RepairLoop, ARingRoundASmallTipTakesTheTipInOneRound) {
   // Capsule of 48 segments: the top cap above z = 2.8 in three clusters round the pole (a
   // tip), one ring below it down to z = 2.1 (more members than the tip), and patches of the

@@ -230,72 +230,86 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
   if (ids_needed() + keep_free > free_ids.size()) {
     // Merge light adjacent pairs away from every defect: the lightest eligible clusters (a few
     // times as many as needed, found in O(K)) propose their lightest neighbour; proposals are
-    // taken lightest pair first. Only the candidates' own vertices are scanned.
-    const size_t needed = ids_needed() + keep_free - free_ids.size();
-    std::vector<int32_t> candidates;
+    // taken lightest pair first. Only the candidates' own vertices are scanned. When those
+    // give too few merges, the next lightest batch, four times larger, is tried: the lightest
+    // clusters may all sit where no merge is allowed (crude decimation of the dragon subdivided
+    // to 26.6M faces → 200,000: 40 candidates on small pieces refused, no merge, so no split of
+    // six defective clusters, 28 rounds to the cap).
     const std::span<const uint32_t> size = labels_.index().sizes();
+    std::vector<int32_t> eligible;
     for (uint32_t c = 0; c < K_; ++c)
-      if (compensable(int32_t(c)) && size[c] > 0) candidates.push_back(int32_t(c));
-    const size_t keep = std::min(candidates.size(), 8 * needed + 16);
+      if (compensable(int32_t(c)) && size[c] > 0) eligible.push_back(int32_t(c));
     auto lighter = [&](int32_t x, int32_t y) { return weight_[x] != weight_[y] ? weight_[x] < weight_[y] : x < y; };
-    std::nth_element(candidates.begin(), candidates.begin() + std::ptrdiff_t(keep), candidates.end(), lighter);
-    candidates.resize(keep);
-    // Read in id order: the sampling numbers clusters range by range, so ascending ids walk the
-    // store (and the member index) forwards and each page is read once. In weight order the
-    // reads jump across the whole mesh: out of core, a 105M-face store at 2 GiB re-read its
-    // pages for every candidate (repair 186 s instead of 31 s).
-    std::sort(candidates.begin(), candidates.end());
-    for (int32_t a : candidates) {  // each proposes its lightest compensable neighbour
-      std::vector<int32_t>& around = round_neighbours_[a];
-      neighbour_clusters(a, around);
-      for (int32_t b : around)
-        if (compensable(b) && (partner_[a] < 0 || lighter(b, partner_[a]))) partner_[a] = b;
-    }
-    {  // the partners' neighbour lists, in id order too
-      std::vector<int32_t> partners;
+    // One batch of candidates: each proposes its lightest compensable neighbour, and the pairs
+    // are merged lightest first while ids are still needed.
+    auto merge_light_pairs = [&](std::vector<int32_t>& candidates) {
+      // Read in id order: the sampling numbers clusters range by range, so ascending ids walk the
+      // store (and the member index) forwards and each page is read once. In weight order the
+      // reads jump across the whole mesh: out of core, a 105M-face store at 2 GiB re-read its
+      // pages for every candidate (repair 186 s instead of 31 s).
+      std::sort(candidates.begin(), candidates.end());
+      for (int32_t a : candidates) {  // each proposes its lightest compensable neighbour
+        std::vector<int32_t>& around = round_neighbours_[a];
+        neighbour_clusters(a, around);
+        for (int32_t b : around)
+          if (compensable(b) && (partner_[a] < 0 || lighter(b, partner_[a]))) partner_[a] = b;
+      }
+      {  // the partners' neighbour lists, in id order too
+        std::vector<int32_t> partners;
+        for (int32_t a : candidates)
+          if (partner_[a] >= 0 && !round_neighbours_.contains(partner_[a])) partners.push_back(partner_[a]);
+        dual::sort_unique(partners);
+        for (int32_t b : partners) neighbour_clusters(b, round_neighbours_[b]);
+      }
+      std::vector<int32_t> proposers;
       for (int32_t a : candidates)
-        if (partner_[a] >= 0 && !round_neighbours_.contains(partner_[a])) partners.push_back(partner_[a]);
-      dual::sort_unique(partners);
-      for (int32_t b : partners) neighbour_clusters(b, round_neighbours_[b]);
+        if (partner_[a] >= 0) proposers.push_back(a);
+      auto pair_weight = [&](int32_t a) { return weight_[a] + weight_[partner_[a]]; };
+      std::stable_sort(proposers.begin(), proposers.end(),
+                       [&](int32_t x, int32_t y) { return pair_weight(x) < pair_weight(y); });
+      std::vector<int32_t> fresh_a, fresh_b;
+      for (int32_t a : proposers) {
+        if (ids_needed() + keep_free <= free_ids.size()) break;
+        const int32_t b = partner_[a];
+        if (used_.contains(a) || used_.contains(b)) continue;
+        // A merge collapses the dual edge a–b. Off the boundary it keeps the dual manifold only
+        // when a and b have exactly two common neighbours, the clusters at the ends of their
+        // frontier (the link condition of an edge collapse); the neighbours of a merged pair
+        // wait for the next round, so that two merges never share a link.
+        // Lists taken before this round's merges, unless a merge next to the cluster changed them.
+        const std::span<const int32_t> around_a = neighbours_now(a, fresh_a);
+        const std::span<const int32_t> around_b = neighbours_now(b, fresh_b);
+        if (!touches_boundary_[a] && !touches_boundary_[b] && common_count(around_a, around_b) != 2) continue;
+        // Nor when the pair and its neighbours are all there is of a small piece: merged, a
+        // tetrahedron of clusters (two common neighbours, the link condition met) becomes two
+        // faces on the same three clusters. Light clusters are those of small pieces, and count
+        // merges picked them first (dragon → 1000: pieces left with two or three clusters,
+        // repaired for three rounds each after every count round).
+        if (around_a.size() + around_b.size() - common_count(around_a, around_b) < 5) continue;
+        used_.insert(a);
+        used_.insert(b);
+        for (const std::span<const int32_t> around : {around_a, around_b})
+          for (int32_t n : around) {
+            beside_merge_.insert(n);
+            if (keep_free > 0) used_.insert(n);  // count rounds: many merges at once, kept apart
+          }
+        for (uint32_t v : members_of(b)) labels_.set(v, a);
+        free_ids.push_back(b);
+        touched.push_back(a);
+        ++stats.merges;
+      }
+      for (int32_t a : candidates) partner_[a] = -1;
+    };
+    size_t tried = 0;
+    for (size_t batch = 8 * (ids_needed() + keep_free - free_ids.size()) + 16;
+         ids_needed() + keep_free > free_ids.size() && tried < eligible.size(); batch *= 4) {
+      const size_t end = std::min(eligible.size(), tried + batch);
+      std::nth_element(eligible.begin() + std::ptrdiff_t(tried), eligible.begin() + std::ptrdiff_t(end), eligible.end(),
+                       lighter);
+      std::vector<int32_t> candidates(eligible.begin() + std::ptrdiff_t(tried), eligible.begin() + std::ptrdiff_t(end));
+      tried = end;
+      merge_light_pairs(candidates);
     }
-    std::vector<int32_t> proposers;
-    for (int32_t a : candidates)
-      if (partner_[a] >= 0) proposers.push_back(a);
-    auto pair_weight = [&](int32_t a) { return weight_[a] + weight_[partner_[a]]; };
-    std::stable_sort(proposers.begin(), proposers.end(),
-                     [&](int32_t x, int32_t y) { return pair_weight(x) < pair_weight(y); });
-    std::vector<int32_t> fresh_a, fresh_b;
-    for (int32_t a : proposers) {
-      if (ids_needed() + keep_free <= free_ids.size()) break;
-      const int32_t b = partner_[a];
-      if (used_.contains(a) || used_.contains(b)) continue;
-      // A merge collapses the dual edge a–b. Off the boundary it keeps the dual manifold only
-      // when a and b have exactly two common neighbours, the clusters at the ends of their
-      // frontier (the link condition of an edge collapse); the neighbours of a merged pair
-      // wait for the next round, so that two merges never share a link.
-      // Lists taken before this round's merges, unless a merge next to the cluster changed them.
-      const std::span<const int32_t> around_a = neighbours_now(a, fresh_a);
-      const std::span<const int32_t> around_b = neighbours_now(b, fresh_b);
-      if (!touches_boundary_[a] && !touches_boundary_[b] && common_count(around_a, around_b) != 2) continue;
-      // Nor when the pair and its neighbours are all there is of a small piece: merged, a
-      // tetrahedron of clusters (two common neighbours, the link condition met) becomes two
-      // faces on the same three clusters. Light clusters are those of small pieces, and count
-      // merges picked them first (dragon → 1000: pieces left with two or three clusters,
-      // repaired for three rounds each after every count round).
-      if (around_a.size() + around_b.size() - common_count(around_a, around_b) < 5) continue;
-      used_.insert(a);
-      used_.insert(b);
-      for (const std::span<const int32_t> around : {around_a, around_b})
-        for (int32_t n : around) {
-          beside_merge_.insert(n);
-          if (keep_free > 0) used_.insert(n);  // count rounds: many merges at once, kept apart
-        }
-      for (uint32_t v : members_of(b)) labels_.set(v, a);
-      free_ids.push_back(b);
-      touched.push_back(a);
-      ++stats.merges;
-    }
-    for (int32_t a : candidates) partner_[a] = -1;
     used_.clear();
     beside_merge_.clear();
     round_neighbours_.clear();

@@ -92,6 +92,7 @@ nlohmann::json cleaning_json(const StoreBuildReport& b) {
           {"input_boundary_loops", in.boundary_loops},
           {"input_components", in.components},
           {"duplicate_faces_dropped", c.duplicate_faces_dropped},
+          {"double_layer_faces_dropped", c.double_layer_faces_dropped},
           {"degenerate_faces_dropped", c.degenerate_faces_dropped},
           {"nonmanifold_edges_cut", c.nonmanifold_edges_cut},
           {"unpaired_edge_faces", c.unpaired_edge_faces},

@@ -13,6 +13,7 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <numeric>
 #include <nlohmann/json.hpp>
 
 #include "streamcvd/core/measure/shapes.h"
@@ -251,7 +252,11 @@ TEST(StoreClean, TheScreenFindsATwinThatNoFlagShows) {
   EXPECT_TRUE(r.input_topology_known);
   EXPECT_EQ(r.input_topology.duplicate_faces, 1u);
   EXPECT_TRUE(r.cleaning.rebuilt);
-  EXPECT_EQ(r.cleaning.duplicate_faces_dropped, 1u);
+  // Closed on its own (each edge has the two faces and nothing else): both go.
+  EXPECT_EQ(r.cleaning.duplicate_faces_dropped, 2u);
+  EXPECT_EQ(r.cleaning.double_layer_faces_dropped, 2u);
+  EXPECT_EQ(r.cleaning.cleaned.faces, 1280u);
+  EXPECT_TRUE(r.cleaning.cleaned.closed_manifold);
 }
 
 TEST(StoreClean, RepeatedIndexFacesGoZeroAreaFacesOfAManifoldStay) {
@@ -413,6 +418,70 @@ MeshBuffers vertex_clustered(const MeshBuffers& m, int cells) {
   return out;
 }
 
+// A closed slab, n × n quads on top and below, `thick` of them deep along x at ±h, whose other
+// columns are collapsed (bottom vertices welded to the top ones, as vertex clustering welds the
+// two sides of a thin wall): there each face and its reverse share their vertices, and the walls
+// of that part have a repeated index. The surfaces of the thick part meet at the last collapsed
+// column.
+MeshBuffers half_collapsed_slab(uint32_t n, uint32_t thick) {
+  MeshBuffers m;
+  const uint32_t side = n + 1;
+  auto top = [&](uint32_t i, uint32_t j) { return i * side + j; };
+  auto bottom = [&](uint32_t i, uint32_t j) { return side * side + i * side + j; };
+  for (const float z : {0.1f, -0.1f})
+    for (uint32_t i = 0; i <= n; ++i)
+      for (uint32_t j = 0; j <= n; ++j) m.positions.insert(m.positions.end(), {float(i), float(j), z});
+  for (uint32_t i = 0; i < n; ++i)
+    for (uint32_t j = 0; j < n; ++j) {
+      const uint32_t a = top(i, j), b = top(i + 1, j), c = top(i + 1, j + 1), d = top(i, j + 1);
+      m.triangles.insert(m.triangles.end(), {a, b, c, a, c, d});
+      const uint32_t e = bottom(i, j), f = bottom(i + 1, j), g = bottom(i + 1, j + 1), k = bottom(i, j + 1);
+      m.triangles.insert(m.triangles.end(), {e, g, f, e, k, g});
+    }
+  // Walls under the top's boundary edges u → v (counter-clockwise seen from above).
+  std::vector<std::pair<uint32_t, uint32_t>> rim;
+  for (uint32_t i = 0; i < n; ++i) rim.push_back({top(i, 0), top(i + 1, 0)}), rim.push_back({top(i + 1, n), top(i, n)});
+  for (uint32_t j = 0; j < n; ++j) rim.push_back({top(n, j), top(n, j + 1)}), rim.push_back({top(0, j + 1), top(0, j)});
+  for (const auto& [u, v] : rim) {
+    const uint32_t bu = u + side * side, bv = v + side * side;
+    m.triangles.insert(m.triangles.end(), {v, u, bu, v, bu, bv});
+  }
+  // Weld: the columns i ≤ n − thick lose their depth.
+  std::vector<uint32_t> to(m.vertex_count());
+  std::iota(to.begin(), to.end(), 0u);
+  for (uint32_t i = 0; i + thick <= n; ++i)
+    for (uint32_t j = 0; j <= n; ++j) to[bottom(i, j)] = top(i, j);
+  MeshBuffers welded;
+  welded.positions = m.positions;
+  for (size_t t = 0; t < m.triangles.size(); t += 3) {
+    const uint32_t a = to[m.triangles[t]], b = to[m.triangles[t + 1]], c = to[m.triangles[t + 2]];
+    if (a != b && b != c && a != c) welded.triangles.insert(welded.triangles.end(), {a, b, c});
+  }
+  return welded;
+}
+
+TEST(StoreClean, AWallCollapsedOntoOneLayerIsDroppedAndTheSurfaceStaysClosed) {
+  const uint32_t n = 8, thick = 4;
+  const MeshBuffers slab = half_collapsed_slab(n, thick);
+  StoreBuildReport r;
+  const MeshStore store = build(slab, r);
+  ASSERT_TRUE(r.topology_checked);
+  const uint64_t collapsed_faces = 2 * 2 * uint64_t(n - thick) * n;  // two layers of two per quad
+  EXPECT_EQ(r.input_topology.duplicate_faces, collapsed_faces / 2);
+  EXPECT_GT(r.input_topology.nonmanifold_edges, 0u);
+  EXPECT_EQ(r.cleaning.duplicate_faces_dropped, collapsed_faces);
+  EXPECT_EQ(r.cleaning.double_layer_faces_dropped, collapsed_faces);
+  // Keeping one layer left each edge of the last collapsed column with three faces: an unpaired
+  // face and a hole along it.
+  const TopologyStats s = compute_topology_stats(store.view());
+  expect_manifold(s);
+  EXPECT_TRUE(s.closed_manifold);
+  EXPECT_EQ(s.boundary_loops, 0u);
+  EXPECT_EQ(s.components, 1u);
+  EXPECT_EQ(s.faces, slab.face_count() - collapsed_faces);
+  EXPECT_TRUE(s.consistently_oriented);
+}
+
 TEST(StoreClean, AVertexClusteredScanCleansToAManifoldAndRemeshesWithoutDeletion) {
   // Fertility snapped to 12 cells: cuts whose sheets stay joined round both ends of their edge
   // (they cannot come apart at a vertex) were left non-manifold (4 edges, 8 vertices), and the
@@ -421,8 +490,14 @@ TEST(StoreClean, AVertexClusteredScanCleansToAManifoldAndRemeshesWithoutDeletion
   StoreBuildReport r;
   build(crude, r);
   ASSERT_GT(r.input_topology.nonmanifold_edges, 0u);
+  EXPECT_EQ(r.input_topology.boundary_loops, 0u);
   EXPECT_EQ(r.cleaning.cleaned.nonmanifold_edges, 0u);
   EXPECT_EQ(r.cleaning.cleaned.nonmanifold_vertices, 0u);
+  // Its duplicates are the two sides of thin parts welded together: dropped both, the surface
+  // keeps all but a few of the holes a kept layer opened (20 loops, 9 pieces).
+  EXPECT_GT(r.cleaning.double_layer_faces_dropped, 0u);
+  EXPECT_LE(r.cleaning.cleaned.boundary_loops, 4u) << r.cleaning.cleaned.boundary_loops;
+  EXPECT_LE(r.cleaning.cleaned.components, 2u) << r.cleaning.cleaned.components;
   if (!test::cli_available()) GTEST_SKIP() << "no CLI";
   const fs::path dir = test::temp_dir("store_clean_crude");
   const std::string in = (dir / "crude.ply").string();

@@ -65,9 +65,11 @@ void print_cleaning(std::FILE* out, const StoreBuildReport& b, const char* inden
     std::fprintf(out, "%scleaning            none needed\n", indent);
     return;
   }
-  std::fprintf(out, "%scleaning            %llu duplicate + %llu degenerate faces dropped, %llu non-manifold edges cut "
-               "(%llu faces left unpaired), %llu vertices split into %llu copies, %llu unpaired faces dropped (%u rounds)\n",
-               indent, u(c.duplicate_faces_dropped), u(c.degenerate_faces_dropped), u(c.nonmanifold_edges_cut),
+  std::fprintf(out, "%scleaning            %llu duplicate (%llu in double layers) + %llu degenerate faces dropped, %llu "
+               "non-manifold edges cut (%llu faces left unpaired), %llu vertices split into %llu copies, %llu unpaired "
+               "faces dropped (%u rounds)\n",
+               indent, u(c.duplicate_faces_dropped), u(c.double_layer_faces_dropped), u(c.degenerate_faces_dropped),
+               u(c.nonmanifold_edges_cut),
                u(c.unpaired_edge_faces), u(c.vertices_split), u(c.vertex_copies), u(c.unpaired_faces_dropped), c.rounds);
   std::fprintf(out, "%scleaned             %llu vertices, %llu faces, %llu boundary loops, %llu components (%lld sheets "
                "made), non-manifold e/v %llu / %llu\n",

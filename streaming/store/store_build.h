@@ -61,7 +61,10 @@ struct StoreBuildOptions {
 /// What the topology cleaning did (streaming/store/store_clean.h); all 0 for a clean input.
 struct TopologyCleaning {
   bool rebuilt = false;                   ///< defects found: the store was rebuilt from the cleaned soup
-  uint64_t duplicate_faces_dropped = 0;   ///< same vertex set as an earlier face (the first is kept)
+  uint64_t duplicate_faces_dropped = 0;   ///< same vertex set as another face (one is kept, or none: below)
+  /// Of those, faces of double layers dropped whole: a face and its reverse whose edges the
+  /// faces around them already close in pairs (two sides of a wall collapsed onto one layer).
+  uint64_t double_layer_faces_dropped = 0;
   uint64_t degenerate_faces_dropped = 0;  ///< a repeated index, or zero area at a non-manifold vertex
   uint64_t nonmanifold_edges_cut = 0;     ///< edges still used by > 2 faces after the drops, paired into sheets
   uint64_t unpaired_edge_faces = 0;       ///< faces of those edges left without a partner: a new boundary

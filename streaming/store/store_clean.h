@@ -2,6 +2,9 @@
 // read has duplicate, degenerate or non-manifold elements, so that clustering and the dual see a
 // manifold with boundary.
 //   - exact duplicate faces (same vertex set, either orientation) are dropped, the first kept;
+//     a face and its reverse whose edges the faces around them already close in pairs (the two
+//     sides of a wall collapsed onto one layer, as vertex clustering leaves them) are dropped
+//     both, so the surfaces on either side stay closed instead of a cut opening a hole;
 //   - faces with a repeated index are dropped, and zero-area faces (core/measure/mesh_stats.h's threshold)
 //     at a non-manifold vertex; a zero-area face elsewhere stays: it weighs nothing, and dropping
 //     it from a manifold would open a slit (a clean scan such as the dragon, 367 of them, keeps

@@ -20,6 +20,7 @@ set(STREAMCVD_PUBLIC_HEADERS
   core/mesh/mesh_buffers.h
   core/mesh/mesh_view.h
   core/mesh/progress.h
+  core/mesh/union_find.h
   core/mesh/vertex_attributes.h
   core/remesh.h
   streaming/io/mesh_io.h

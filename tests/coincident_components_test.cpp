@@ -51,8 +51,9 @@ TEST(CoincidentComponents, ACutSheetTouchesTheSurfaceAFarPieceDoesNot) {
   EXPECT_EQ(std::count(touches.begin(), touches.end(), uint8_t(1)), 2);  // the torus and the fin
   // The far piece: the component of the vertex at (5, 5, 5).
   for (uint32_t v = 0; v < store.view().vertex_count(); ++v)
-    if (store.view().positions[3 * v] == 5 && store.view().positions[3 * v + 1] == 5 && store.view().positions[3 * v + 2] == 5)
+    if (store.view().positions[3 * v] == 5 && store.view().positions[3 * v + 1] == 5 && store.view().positions[3 * v + 2] == 5) {
       EXPECT_EQ(touches[component[v]], 0);
+    }
 }
 
 TEST(CoincidentComponents, NoTouchingWithoutCoincidentVertices) {

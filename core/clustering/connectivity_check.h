@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "streamcvd/core/mesh/mesh_view.h"
+#include "streamcvd/core/mesh/union_find.h"
 
 namespace streamcvd::detail {
 
@@ -26,10 +27,6 @@ bool removal_keeps_connected(const MeshView& mesh, const LabelOf& label, uint32_
       ids[n++] = u;
     }
   if (n <= 1) return n == 1;
-  auto find = [&](uint8_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
   auto index_of = [&](uint32_t u) {
     for (int i = 0; i < n; ++i)
       if (ids[i] == u) return i;
@@ -44,11 +41,7 @@ bool removal_keeps_connected(const MeshView& mesh, const LabelOf& label, uint32_
     if (label(p) != a || label(q) != a || p == q) continue;
     int ip = index_of(p), iq = index_of(q);
     if (ip < 0 || iq < 0) continue;
-    uint8_t rp = find(uint8_t(ip)), rq = find(uint8_t(iq));
-    if (rp != rq) {
-      parent[rp] = rq;
-      --groups;
-    }
+    groups -= join_sets(std::span<uint8_t>(parent, size_t(n)), uint8_t(ip), uint8_t(iq));
   }
   return groups == 1;
 }

@@ -7,23 +7,12 @@
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 
+#include "streamcvd/core/mesh/union_find.h"
+
 namespace streamcvd {
 namespace {
 
 constexpr uint32_t kNone = UINT32_MAX;
-
-struct UnionFind {
-  std::vector<uint32_t> parent;
-  explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
-  uint32_t find(uint32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  }
-  void unite(uint32_t a, uint32_t b) {
-    a = find(a), b = find(b);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);
-  }
-};
 
 // The first face owned by a vertex ≥ v (faces are sorted by owner, their smallest corner:
 // MeshView). Binary search, O(log F).
@@ -97,7 +86,7 @@ ComponentCheck check_component_topology(std::span<const ComponentShape> input, c
   const uint32_t V = output.vertex_count();
   const uint64_t F = output.face_count();
   // Output components: vertices joined by faces.
-  UnionFind uf(V);
+  DisjointSets<uint32_t> uf(V);
   std::vector<uint8_t> referenced(V, 0);
   for (uint64_t f = 0; f < F; ++f) {
     const uint32_t* t = &output.triangles[3 * f];
@@ -124,7 +113,7 @@ ComponentCheck check_component_topology(std::span<const ComponentShape> input, c
     }
   }
   std::sort(edges.begin(), edges.end());
-  UnionFind boundary(V);
+  DisjointSets<uint32_t> boundary(V);
   std::vector<uint8_t> on_boundary(V, 0);
   for (size_t i = 0; i < edges.size();) {
     size_t j = i;

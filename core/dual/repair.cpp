@@ -20,16 +20,11 @@
 #include "streamcvd/core/dual/dual_topology.h"
 #include "streamcvd/core/dual/repair_state.h"
 #include "streamcvd/core/mesh/timer.h"
+#include "streamcvd/core/mesh/union_find.h"
 
 namespace streamcvd {
 
 namespace {
-
-// Union-find root of x (path halving).
-uint32_t group_root(std::vector<uint32_t>& parent, uint32_t x) {
-  while (parent[x] != x) x = parent[x] = parent[parent[x]];
-  return x;
-}
 
 // Undoes the moves (vertex, label before) of `moved` whose group holds a cluster of `bad`, or,
 // with `strips_changed`, a move of a boundary vertex (the number of strip vertices changed: the
@@ -39,23 +34,19 @@ std::vector<int32_t> undo_moves_of_groups(const MeshView& mesh, const std::vecto
                                           std::span<const int32_t> bad, bool strips_changed, uint32_t K,
                                           detail::LabelEditor& editor,
                                           detail::DefectTracker& tracker, std::span<int32_t> labels) {
-  std::vector<uint32_t> parent(K);
-  std::iota(parent.begin(), parent.end(), 0u);
+  DisjointSets<uint32_t> groups(K);
   for (const auto& m : moved)
-    for (const detail::LabelChange& ch : m) {
-      const uint32_t a = group_root(parent, uint32_t(ch.old_label)), b = group_root(parent, uint32_t(labels[ch.vertex]));
-      if (a != b) parent[std::max(a, b)] = std::min(a, b);
-    }
+    for (const detail::LabelChange& ch : m) groups.unite(uint32_t(ch.old_label), uint32_t(labels[ch.vertex]));
   std::vector<uint8_t> undo(K, 0);
   for (int32_t c : bad)
-    if (c >= 0 && uint32_t(c) < K) undo[group_root(parent, uint32_t(c))] = 1;
+    if (c >= 0 && uint32_t(c) < K) undo[groups.find(uint32_t(c))] = 1;
   if (strips_changed)
     for (const auto& m : moved)
       for (const detail::LabelChange& ch : m)
-        if (mesh.vertex_flags[ch.vertex] & kVertexBoundary) undo[group_root(parent, uint32_t(ch.old_label))] = 1;
+        if (mesh.vertex_flags[ch.vertex] & kVertexBoundary) undo[groups.find(uint32_t(ch.old_label))] = 1;
   for (const auto& m : moved)
     for (const detail::LabelChange& ch : m)
-      if (labels[ch.vertex] != ch.old_label && undo[group_root(parent, uint32_t(ch.old_label))])
+      if (labels[ch.vertex] != ch.old_label && undo[groups.find(uint32_t(ch.old_label))])
         editor.set(ch.vertex, ch.old_label);
   return tracker.check_changes(labels, editor.take_log());
 }

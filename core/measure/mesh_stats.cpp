@@ -24,6 +24,7 @@
 
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/core/mesh/topology_conventions.h"
+#include "streamcvd/core/mesh/union_find.h"
 #include "streamcvd/core/mesh/triangle_quality.h"
 
 #include <oneapi/tbb/blocked_range.h>
@@ -95,29 +96,6 @@ void check_soup(const TriangleSoupView& m, const char* caller) {
     throw InputError(error_at(caller, "face " + std::to_string(bad / 3) + " uses vertex " +
                                           std::to_string(m.triangles[bad]) + " of " + std::to_string(nv)));
 }
-
-/// Disjoint sets with path halving; roots are the smallest index of their set, so a root is a
-/// member of its own class (used to count classes per vertex below).
-template <class Index>
-struct DisjointSets {
-  std::vector<Index> parent;
-  explicit DisjointSets(uint64_t n) : parent(n) {
-    for (uint64_t i = 0; i < n; ++i) parent[i] = Index(i);
-  }
-  Index find(Index x) {
-    while (parent[x] != x) {
-      parent[x] = parent[parent[x]];
-      x = parent[x];
-    }
-    return x;
-  }
-  void unite(Index a, Index b) {
-    a = find(a);
-    b = find(b);
-    if (a < b) parent[b] = a;
-    else if (b < a) parent[a] = b;
-  }
-};
 
 using topology::Box;
 using topology::zero_area;

@@ -40,6 +40,7 @@
 #include "streamcvd/core/mesh/chunked_components.h"
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/core/mesh/topology_conventions.h"
+#include "streamcvd/core/mesh/union_find.h"
 
 namespace streamcvd {
 namespace {
@@ -93,11 +94,6 @@ struct Scratch {
   bool joins(uint32_t v, uint32_t u) const { return u > v || u < begin; }
 };
 
-uint32_t find_corner(std::vector<uint32_t>& parent, uint32_t x) {
-  while (parent[x] != x) x = parent[x] = parent[parent[x]];
-  return x;
-}
-
 // More than one class among v's corners once joined across its 2-use edges (already united in
 // s.corner): a bowtie, or a fan cut by non-manifold or degenerate faces.
 bool several_fans(std::span<const uint32_t> tri, uint32_t v, Scratch& s) {
@@ -105,7 +101,7 @@ bool several_fans(std::span<const uint32_t> tri, uint32_t v, Scratch& s) {
   for (uint32_t lf = 0; lf < s.faces.size(); ++lf)
     for (uint32_t k = 0; k < 3; ++k) {
       const uint32_t c = lf << 2 | k;
-      if (tri[3 * size_t(s.faces[lf]) + k] == v && find_corner(s.corner, c) == c && ++classes > 1) return true;
+      if (tri[3 * size_t(s.faces[lf]) + k] == v && set_root(s.corner, c) == c && ++classes > 1) return true;
     }
   return false;
 }
@@ -150,7 +146,7 @@ void visit_fan(const MeshView& m, uint32_t v, std::span<const uint32_t> fan, dou
 
   sort_small(s.uses.data(), s.uses.data() + s.uses.size());
   s.corner.resize(4 * s.faces.size());
-  for (uint32_t c = 0; c < s.corner.size(); ++c) s.corner[c] = c;
+  reset_sets(std::span<uint32_t>(s.corner));
   bool nonmanifold = false;
   s.parts.add(v);
   for (size_t i = 0, j; i < s.uses.size(); i = j) {
@@ -163,8 +159,7 @@ void visit_fan(const MeshView& m, uint32_t v, std::span<const uint32_t> fan, dou
     if (n == 1) {
       if (joins) s.loops.join(v, u);
     } else if (n == 2) {
-      const uint32_t a = find_corner(s.corner, use_corner(s.uses[i])), b = find_corner(s.corner, use_corner(s.uses[i + 1]));
-      s.corner[std::max(a, b)] = std::min(a, b);
+      join_sets(s.corner, use_corner(s.uses[i]), use_corner(s.uses[i + 1]));
     } else {
       nonmanifold = true;
     }

@@ -30,11 +30,6 @@ uint32_t label_in_place(std::span<uint32_t> parent) {
   return next;
 }
 
-uint32_t find_root(std::vector<uint32_t>& parent, uint32_t x) {
-  while (parent[x] != x) x = parent[x] = parent[parent[x]];
-  return x;
-}
-
 // The export record of vertex v in `p`, or null.
 const FrontierTie* exported_tie(const RangePieces& p, uint32_t v) {
   auto it = std::lower_bound(p.exported.begin(), p.exported.end(), FrontierTie{v, 0});
@@ -87,7 +82,7 @@ ComponentTable merge_range_pieces(std::span<const VertexRange> ranges, std::span
   t.piece_base[ranges.size()] = uint32_t(total);
   std::vector<uint32_t>& parent = t.component_of_piece;
   parent.resize(total);
-  for (uint32_t p = 0; p < total; ++p) parent[p] = p;
+  reset_sets(std::span<uint32_t>(parent));
   auto range_of = [&](uint32_t v) {
     // Last range beginning at or before v.
     auto it = std::upper_bound(ranges.begin(), ranges.end(), v, [](uint32_t x, const VertexRange& r) { return x < r.begin; });
@@ -107,10 +102,7 @@ ComponentTable merge_range_pieces(std::span<const VertexRange> ranges, std::span
         throw std::logic_error("chunked components: range " + std::to_string(c) + " joins vertex " +
                                std::to_string(rec.vertex) + ", which does not join it back (joins must be symmetric)");
       matched[export_base[other] + uint64_t(there - pieces[other].exported.data())] = true;
-      uint32_t a = find_root(parent, t.piece_base[c] + rec.piece);
-      uint32_t b = find_root(parent, t.piece_base[other] + there->piece);
-      if (a < b) std::swap(a, b);
-      parent[a] = b;  // the smaller root wins: parents point down, as label_in_place needs
+      join_sets(parent, t.piece_base[c] + rec.piece, t.piece_base[other] + there->piece);  // parents point down
     }
   }
   if (auto it = std::find(matched.begin(), matched.end(), false); it != matched.end()) {

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "streamcvd/core/mesh/mesh_view.h"
+#include "streamcvd/core/mesh/union_find.h"
 
 namespace streamcvd {
 
@@ -85,17 +86,8 @@ class RangePieceBuilder {
   VertexRange range() const { return range_; }
 
  private:
-  uint32_t find(uint32_t x) {
-    while (parent_[x] != x) x = parent_[x] = parent_[parent_[x]];
-    return x;
-  }
-  // The smaller root wins, so parent_[x] ≤ x always: finish() relies on it.
-  void unite(uint32_t a, uint32_t b) {
-    a = find(a);
-    b = find(b);
-    if (a < b) parent_[b] = a;
-    else if (b < a) parent_[a] = b;
-  }
+  // The smaller root wins (union_find.h), so parent_[x] ≤ x always: finish() relies on it.
+  void unite(uint32_t a, uint32_t b) { join_sets(parent_, a, b); }
 
   VertexRange range_;
   std::vector<uint32_t> parent_;        // local index → parent, kNoComponent if absent

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "streamcvd/core/mesh/mesh_view.h"
+#include "streamcvd/core/mesh/union_find.h"
 #include "streamcvd/streaming/store/counting_sort.h"
 
 namespace streamcvd {
@@ -93,11 +94,6 @@ struct FanScratch {
   std::vector<uint8_t> used;     // local face has at least one edge
   std::vector<uint32_t> ring;    // a ring that may not fit its destination
 };
-
-uint32_t find_root(std::vector<uint32_t>& parent, uint32_t x) {
-  while (parent[x] != x) x = parent[x] = parent[parent[x]];
-  return x;
-}
 
 // Fast path of vertex_flags for the usual vertex: at most kMaxSimpleFan distinct faces, each
 // with v once and consistently oriented, forming one closed fan (a cycle) or one open fan (a
@@ -186,7 +182,7 @@ uint8_t vertex_flags(std::span<const uint32_t> triangles, std::span<const uint32
   sort_small(s.edges.data(), s.edges.data() + s.edges.size());
   s.parent.resize(local);
   s.used.assign(local, 0);
-  for (uint32_t i = 0; i < local; ++i) s.parent[i] = i;
+  reset_sets(std::span<uint32_t>(s.parent));
   uint8_t flags = 0;
   for (size_t i = 0; i < s.edges.size();) {
     size_t j = i + 1;
@@ -201,12 +197,12 @@ uint8_t vertex_flags(std::span<const uint32_t> triangles, std::span<const uint32
     for (size_t k = i + 1; k < j; ++k) {
       const uint32_t f = uint32_t(s.edges[k]);
       s.used[f] = 1;
-      s.parent[find_root(s.parent, f)] = find_root(s.parent, first);
+      join_sets(s.parent, f, first);
     }
     i = j;
   }
   uint32_t fans = 0;
-  for (uint32_t i = 0; i < local; ++i) fans += s.used[i] && find_root(s.parent, i) == i;
+  for (uint32_t i = 0; i < local; ++i) fans += s.used[i] && set_root(s.parent, i) == i;
   if (fans > 1) flags |= kVertexNonManifold;
   return flags;
 }

@@ -2,6 +2,9 @@
 // relaxation and the projection back onto the input by a walk in its faces.
 #include "streamcvd/core/dual/mesh_optimize.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -30,25 +33,28 @@ uint32_t prev_in_face(uint32_t h) { return h - h % 3 + (h + 2) % 3; }
 
 // Twin half-edge of every half-edge h = 3f + k (edge T[h] → T[next_in_face(h)]); kNoTwin on
 // boundary edges, non-manifold edges (more than two faces) and edges used twice in the same
-// direction. O(F · valence) through the vertex-face CSR.
+// direction. O(F · valence) through the vertex-face CSR, in parallel: a pair of twins is
+// written only from its half-edge leaving the smaller end, so no two tasks write one entry.
 std::vector<int64_t> build_twins(std::span<const uint32_t> T, size_t V) {
   std::vector<uint32_t> offsets, faces;
   build_vertex_faces(T, V, offsets, faces);
   std::vector<int64_t> twin(T.size(), kNoTwin);
-  for (size_t h = 0; h < T.size(); ++h) {
-    const uint32_t a = T[h], b = T[next_in_face(uint32_t(h))];
-    if (a >= b) continue;  // each edge once, from its smaller end
-    uint32_t sharing = 0;
-    int64_t reverse = kNoTwin;
-    for (uint32_t i = offsets[a]; i < offsets[a + 1]; ++i) {
-      const uint32_t f = faces[i];
-      for (uint32_t g = 3 * f; g < 3 * f + 3; ++g) {
-        if (T[g] == b) ++sharing;
-        if (T[g] == b && T[next_in_face(g)] == a) reverse = g;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, T.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t h = r.begin(); h != r.end(); ++h) {
+      const uint32_t a = T[h], b = T[next_in_face(uint32_t(h))];
+      if (a >= b) continue;  // each edge once, from its smaller end
+      uint32_t sharing = 0;
+      int64_t reverse = kNoTwin;
+      for (uint32_t i = offsets[a]; i < offsets[a + 1]; ++i) {
+        const uint32_t f = faces[i];
+        for (uint32_t g = 3 * f; g < 3 * f + 3; ++g) {
+          if (T[g] == b) ++sharing;
+          if (T[g] == b && T[next_in_face(g)] == a) reverse = g;
+        }
       }
+      if (sharing == 2 && reverse != kNoTwin) twin[h] = reverse, twin[size_t(reverse)] = int64_t(h);
     }
-    if (sharing == 2 && reverse != kNoTwin) twin[h] = reverse, twin[size_t(reverse)] = int64_t(h);
-  }
+  });
   return twin;
 }
 
@@ -176,26 +182,32 @@ std::vector<uint8_t> free_vertices(const Work& w, std::span<const uint8_t> movab
   std::vector<uint8_t> free(V, 0);
   for (size_t v = 0; v < V; ++v)
     free[v] = movable[v] && (!have_surface || surface_face[v] != UINT32_MAX) && w.face_count[v] > 0;
-  for (size_t h = 0; h < w.T.size(); ++h) {
-    bool pinned = w.twin[h] == kNoTwin;
-    if (!pinned && w.twin[h] > int64_t(h)) {
-      const size_t f = h / 3, g = size_t(w.twin[h]) / 3;
-      const Vec3 nf = unit(area_vector(point(w.P, w.T[3 * f]), point(w.P, w.T[3 * f + 1]), point(w.P, w.T[3 * f + 2])));
-      const Vec3 ng = unit(area_vector(point(w.P, w.T[3 * g]), point(w.P, w.T[3 * g + 1]), point(w.P, w.T[3 * g + 2])));
-      // A sliver's normal says nothing about the surface (strip triangles along holes, needles):
-      // only a bend between two well-shaped triangles is a feature.
-      pinned = dot(nf, ng) < cos_feature && std::min(w.q[f], w.q[g]) >= kSliverQuality;
+  // Which edges pin their ends, in parallel (one flag per half-edge), then applied in order.
+  std::vector<uint8_t> pins(w.T.size(), 0);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, w.T.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t h = r.begin(); h != r.end(); ++h) {
+      bool pinned = w.twin[h] == kNoTwin;
+      if (!pinned && w.twin[h] > int64_t(h)) {
+        const size_t f = h / 3, g = size_t(w.twin[h]) / 3;
+        const Vec3 nf = unit(area_vector(point(w.P, w.T[3 * f]), point(w.P, w.T[3 * f + 1]), point(w.P, w.T[3 * f + 2])));
+        const Vec3 ng = unit(area_vector(point(w.P, w.T[3 * g]), point(w.P, w.T[3 * g + 1]), point(w.P, w.T[3 * g + 2])));
+        // A sliver's normal says nothing about the surface (strip triangles along holes, needles):
+        // only a bend between two well-shaped triangles is a feature.
+        pinned = dot(nf, ng) < cos_feature && std::min(w.q[f], w.q[g]) >= kSliverQuality;
+      }
+      pins[h] = pinned;
     }
-    if (pinned) free[w.T[h]] = free[w.T[next_in_face(uint32_t(h))]] = 0;
-  }
-  // A vertex whose faces form more than one fan (a defect left in the output) stays.
-  std::vector<uint8_t> checked(V, 0);
-  for (size_t h = 0; h < w.T.size(); ++h) {
-    const uint32_t v = w.T[h];
-    if (!free[v] || checked[v]) continue;
-    checked[v] = 1;
-    free[v] = !has_neighbour_or_unsafe(w, uint32_t(h), UINT32_MAX);
-  }
+  });
+  for (size_t h = 0; h < w.T.size(); ++h)
+    if (pins[h]) free[w.T[h]] = free[w.T[next_in_face(uint32_t(h))]] = 0;
+  // A vertex whose faces form more than one fan (a defect left in the output) stays: tested
+  // from its first half-edge, one vertex per task.
+  std::vector<uint32_t> first_out(V, UINT32_MAX);
+  for (size_t h = w.T.size(); h-- > 0;) first_out[w.T[h]] = uint32_t(h);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t v = r.begin(); v != r.end(); ++v)
+      if (free[v] && first_out[v] != UINT32_MAX) free[v] = !has_neighbour_or_unsafe(w, first_out[v], UINT32_MAX);
+  });
   return free;
 }
 
@@ -271,17 +283,30 @@ uint64_t project_moved(Work& w, const MeshView& surface, std::span<uint32_t> sur
                        bool keep_offset) {
   std::vector<uint32_t> vf_offsets, vf;
   build_vertex_faces(w.T, w.P.size() / 3, vf_offsets, vf);
-  uint64_t projected = 0;
-  for (const uint32_t v : order) {
-    if (!moved[v]) continue;
-    const Vec3 p = point(w.P, v);
-    Vec3 offset{0, 0, 0}, q;
-    if (keep_offset) {
-      surface_face[v] = closest_point_walk(surface, surface_face[v], original[v], q);
-      offset = sub(original[v], q);
+  // The walks, in parallel: each reads its own vertex's position and face only.
+  std::vector<uint32_t> to_place;
+  for (const uint32_t v : order)
+    if (moved[v]) to_place.push_back(v);
+  std::vector<Vec3> targets(to_place.size());
+  std::vector<uint32_t> faces(to_place.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, to_place.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      const uint32_t v = to_place[i];
+      Vec3 offset{0, 0, 0}, q;
+      if (keep_offset) {
+        surface_face[v] = closest_point_walk(surface, surface_face[v], original[v], q);
+        offset = sub(original[v], q);
+      }
+      faces[i] = closest_point_walk(surface, surface_face[v], sub(point(w.P, v), offset), q);
+      targets[i] = add(q, offset);
     }
-    const uint32_t face = closest_point_walk(surface, surface_face[v], sub(p, offset), q);
-    const Vec3 target = add(q, offset);
+  });
+  // Applied in order: a move is refused when it would turn a ring face over, the ring as the
+  // earlier moves left it.
+  uint64_t projected = 0;
+  for (size_t i = 0; i < to_place.size(); ++i) {
+    const uint32_t v = to_place[i], face = faces[i];
+    const Vec3 p = point(w.P, v), target = targets[i];
     bool ok = true;
     for (uint32_t i = vf_offsets[v]; i < vf_offsets[v + 1] && ok; ++i) {
       const uint32_t* t = &w.T[3 * size_t(vf[i])];
@@ -372,8 +397,11 @@ MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<u
   const double deg = std::numbers::pi / 180;
   Work w{positions, triangles, build_twins(triangles, V), std::vector<uint32_t>(V, 0), std::vector<double>(F),
          std::cos(options.flip_max_dihedral_deg * deg)};
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, F, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t f = r.begin(); f != r.end(); ++f) w.q[f] = face_quality(w, f);
+  });
   double q_sum = 0;
-  for (size_t f = 0; f < F; ++f) q_sum += w.q[f] = face_quality(w, f);
+  for (size_t f = 0; f < F; ++f) q_sum += w.q[f];
   report.q_avg_before = F ? q_sum / double(F) : 0;
   for (uint32_t v : triangles) ++w.face_count[v];
 

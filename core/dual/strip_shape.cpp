@@ -2,6 +2,10 @@
 // moves the cluster vertices around them to lower Σ 1/Q over their fans.
 #include "streamcvd/core/dual/strip_shape.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -269,6 +273,41 @@ StripQuality strip_face_quality(std::span<const float> positions, std::span<cons
 
 namespace {
 
+// Each vertex's boundary edges (used by exactly one face, counted as half-edges): their number,
+// capped at 3, and the first two other ends in ascending order. Per vertex from its faces
+// (vf: the vertex → face CSR), in parallel; O(F · valence).
+void boundary_neighbours(std::span<const uint32_t> T, std::span<const uint32_t> vf_offsets, std::span<const uint32_t> vf,
+                         std::span<uint8_t> count, std::span<std::array<uint32_t, 2>> bnbr) {
+  tbb::enumerable_thread_specific<std::vector<uint32_t>> scratch;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, count.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+    std::vector<uint32_t>& ends = scratch.local();
+    for (size_t v = r.begin(); v != r.end(); ++v) {
+      ends.clear();
+      for (uint32_t i = vf_offsets[v]; i < vf_offsets[v + 1]; ++i) {
+        const uint32_t f = vf[i];
+        if (i > vf_offsets[v] && f == vf[i - 1]) continue;  // listed once per corner at v
+        for (uint32_t k = 0; k < 3; ++k) {
+          const uint32_t a = T[3 * size_t(f) + k], b = T[3 * size_t(f) + (k + 1) % 3];
+          if (a == v && b == v) ends.push_back(uint32_t(v)), ends.push_back(uint32_t(v));  // both ends are v
+          else if (a == v) ends.push_back(b);
+          else if (b == v) ends.push_back(a);
+        }
+      }
+      std::sort(ends.begin(), ends.end());
+      uint8_t n = 0;
+      for (size_t i = 0, j; i < ends.size(); i = j) {
+        for (j = i + 1; j < ends.size() && ends[j] == ends[i]; ++j) {
+        }
+        const bool self = ends[i] == v;  // an edge (v, v) lists v twice per use, and counts twice
+        if (j - i != (self ? 2u : 1u)) continue;
+        if (n < 2) bnbr[v][n] = ends[i];
+        n = uint8_t(std::min(n + (self ? 2 : 1), 3));
+      }
+      count[v] = n;
+    }
+  });
+}
+
 // One round of shape_boundary_strips on the current connectivity: set-up, then the sweeps.
 void shape_round(DualMesh& dual, const MeshView& surface, const BoundaryLoops& loops, std::span<const uint8_t> movable,
                  std::span<uint32_t> surface_face, const StripShapeOptions& options, StripShapeReport& report) {
@@ -279,24 +318,9 @@ void shape_round(DualMesh& dual, const MeshView& surface, const BoundaryLoops& l
   const size_t F = T.size() / 3;
   build_vertex_faces(T, V, st.vf_offsets, st.vf);
   // Output boundary edges (used by one face) and each vertex's boundary neighbours.
-  std::vector<uint64_t> edges(T.size());
-  for (size_t h = 0; h < T.size(); ++h) {
-    const uint32_t a = T[h], b = T[h - h % 3 + (h + 1) % 3];
-    edges[h] = uint64_t(std::min(a, b)) << 32 | std::max(a, b);
-  }
-  std::sort(edges.begin(), edges.end());
   std::vector<uint8_t> boundary_count(V, 0);
   st.bnbr.assign(V, {UINT32_MAX, UINT32_MAX});
-  for (size_t i = 0, j; i < edges.size(); i = j) {
-    for (j = i + 1; j < edges.size() && edges[j] == edges[i]; ++j) {
-    }
-    if (j - i != 1) continue;
-    const uint32_t a = uint32_t(edges[i] >> 32), b = uint32_t(edges[i]);
-    if (boundary_count[a] < 2) st.bnbr[a][boundary_count[a]] = b;
-    if (boundary_count[b] < 2) st.bnbr[b][boundary_count[b]] = a;
-    boundary_count[a] = uint8_t(std::min(boundary_count[a] + 1, 3));
-    boundary_count[b] = uint8_t(std::min(boundary_count[b] + 1, 3));
-  }
+  boundary_neighbours(T, st.vf_offsets, st.vf, boundary_count, st.bnbr);
   // Where each strip vertex lies on the input loops, from its sources.
   std::vector<std::array<uint32_t, 3>> at_loop;  // (input vertex, loop, position), sorted
   for (uint32_t l = 0; l + 1 < loops.offsets.size(); ++l)

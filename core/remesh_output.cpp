@@ -6,7 +6,6 @@
 #include <string>
 
 #include "streamcvd/core/dual/placement.h"
-#include "streamcvd/core/measure/mesh_stats.h"
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/core/remesh_stages.h"
 #include "streamcvd/core/mesh/triangle_quality.h"
@@ -155,16 +154,16 @@ OutputChecks check_output(Job& job, const Clusters& c, const BoundaryLoops& loop
   if (dual.mesh.face_count() == 0 && mesh.face_count() > 0)
     throw InputError("cannot build a valid surface with N=" + std::to_string(job.options.vertices) +
                      " vertices: the mesh's features are thinner than a cluster at this budget; use a larger N");
-  const InputClosure input = input_closure(mesh);
-  checks.input_euler_characteristic = input.euler_characteristic;
-  checks.output_euler_characteristic = compute_topology_stats(dual.mesh.view()).euler_characteristic;
-  checks.topology_changed = input.closed && (checks.output_euler_characteristic != checks.input_euler_characteristic ||
-                                             placement.defects_removed.faces_removed > 0);
   const std::vector<uint32_t> component_of_cluster = component_of_each_cluster(c.labels, c.budget, c.K);
   const std::vector<ComponentShape> shapes = input_component_shapes(
       mesh, c.budget.component_of_vertex, uint32_t(c.budget.clusters_per_component.size()), loops);
   checks.components =
       check_component_topology(shapes, dual.mesh.view(), dual.cluster_of_output_vertex, component_of_cluster);
+  const InputClosure input = input_closure(mesh);
+  checks.input_euler_characteristic = input.euler_characteristic;
+  checks.output_euler_characteristic = checks.components.output_euler_characteristic;
+  checks.topology_changed = input.closed && (checks.output_euler_characteristic != checks.input_euler_characteristic ||
+                                             placement.defects_removed.faces_removed > 0);
   checks.strips = strip_face_quality(dual.mesh.positions, dual.mesh.triangles, dual.cluster_of_output_vertex);
   checks.clusters_connected = clusters_connected(mesh, c.labels, c.K);
   job.seconds.checks = job.elapsed();

@@ -6,6 +6,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
 #include "streamcvd/core/mesh/union_find.h"
 
@@ -112,7 +113,7 @@ ComponentCheck check_component_topology(std::span<const ComponentShape> input, c
       if (a != b) edges.push_back(uint64_t(std::min(a, b)) << 32 | std::max(a, b));
     }
   }
-  std::sort(edges.begin(), edges.end());
+  tbb::parallel_sort(edges.begin(), edges.end());
   DisjointSets<uint32_t> boundary(V);
   std::vector<uint8_t> on_boundary(V, 0);
   for (size_t i = 0; i < edges.size();) {
@@ -123,6 +124,7 @@ ComponentCheck check_component_topology(std::span<const ComponentShape> input, c
     if (j - i == 1) boundary.unite(a, b), on_boundary[a] = on_boundary[b] = 1;
     i = j;
   }
+  for (int64_t e : euler) check.output_euler_characteristic += e;
   for (uint32_t v = 0; v < V; ++v)
     if (on_boundary[v] && boundary.find(v) == v) ++loops[id[uf.find(v)]], ++check.output_boundary_loops;
   // Which input component each output component comes from (through any of its clusters).

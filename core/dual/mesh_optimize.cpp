@@ -3,10 +3,12 @@
 #include "streamcvd/core/dual/mesh_optimize.h"
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -215,61 +217,104 @@ struct RelaxParams {
   double step = 1, cos_normal_change = 0;
 };
 
-// One Gauss-Seidel sweep of tangential relaxation over the `active` vertices: each moves
-// towards the mean of its neighbours (uniform Laplacian, tangential part only). A move is kept
-// when the ring's Q sum rises, its smallest Q stays above min(old smallest, 0.5) and no ring
-// triangle turns by more than the limit. Moves stay in the tangent plane: the projection onto
-// the surface is done once at the end (project_moved). Marks moved vertices in `moved`.
+// Tangential relaxation of vertex v: a move towards the mean of its neighbours (uniform
+// Laplacian, tangential part only), kept when the ring's Q sum rises, its smallest Q stays above
+// min(old smallest, 0.5) and no ring triangle turns by more than the limit. The move stays in
+// the tangent plane: the projection onto the surface is done once at the end (project_moved).
+// Reads v's ring, writes v's position and its ring faces' Q. Returns true when v moved.
+bool relax_vertex(Work& w, uint32_t v, std::span<const uint32_t> ring, const RelaxParams& params,
+                  std::vector<Vec3>& old_normal) {
+  const Vec3 p = point(w.P, v);
+  Vec3 mean{0, 0, 0}, normal{0, 0, 0};
+  double q_min_old = 1, q_sum_old = 0, edge_sum = 0;
+  old_normal.clear();
+  for (uint32_t f : ring) {
+    const uint32_t* t = &w.T[3 * size_t(f)];
+    const int kv = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
+    const Vec3 u = point(w.P, t[(kv + 1) % 3]), x = point(w.P, t[(kv + 2) % 3]);
+    const Vec3 n = area_vector(p, u, x);
+    // Each neighbour of an interior vertex is a corner of two ring faces: the mean of the
+    // edge midpoints opposite v is the mean of the neighbours.
+    mean = add(mean, scale(add(u, x), 0.5));
+    edge_sum += norm(sub(u, p));
+    normal = add(normal, n);
+    old_normal.push_back(unit(n));
+    q_min_old = std::min(q_min_old, w.q[f]);
+    q_sum_old += w.q[f];
+  }
+  normal = unit(normal);
+  Vec3 delta = sub(scale(mean, 1.0 / double(ring.size())), p);
+  delta = sub(delta, scale(normal, dot(delta, normal)));  // tangential part only
+  if (norm(delta) * params.step < 0.01 * edge_sum / double(ring.size())) return false;  // nothing to gain
+  const Vec3 target = add(p, scale(delta, params.step));
+  double q_min_new = 1, q_sum_new = 0;
+  bool ok = true;
+  for (size_t i = 0; i < ring.size() && ok; ++i) {
+    const uint32_t* t = &w.T[3 * size_t(ring[i])];
+    const int kv = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
+    const Vec3 u = point(w.P, t[(kv + 1) % 3]), x = point(w.P, t[(kv + 2) % 3]);
+    // Slivers may turn (that is how they fatten) but not fold over.
+    ok = dot(unit(area_vector(target, u, x)), old_normal[i]) >=
+         (w.q[ring[i]] >= kSliverQuality ? params.cos_normal_change : 1e-3);
+    const double q = triangle_quality(target, u, x);
+    q_min_new = std::min(q_min_new, q);
+    q_sum_new += q;
+  }
+  if (!ok || q_sum_new <= q_sum_old || q_min_new < std::min(q_min_old, 0.5)) return false;
+  for (int k = 0; k < 3; ++k) w.P[3 * size_t(v) + k] = float(target[k]);
+  for (uint32_t f : ring) w.q[f] = face_quality(w, f);  // of the float-rounded position
+  return true;
+}
+
+// The active vertices of `order` in colour classes: greedily, in `order`, each takes the
+// smallest colour none of its ring's vertices has, so no two vertices of a class share a face
+// and a class relaxes in parallel with the same result as one at a time. Vertices of class
+// kSerialColour (every smaller colour taken around them, a valence above 63) relax alone.
+// Returns the classes' vertices, class k at [begin[k], begin[k + 1]). O(Σ ring sizes), serial.
+constexpr uint32_t kSerialColour = 64;
+std::vector<uint32_t> colour_classes(const Work& w, std::span<const uint32_t> vf_offsets, std::span<const uint32_t> vf,
+                                     std::span<const uint32_t> order, std::span<const uint8_t> active,
+                                     std::vector<uint32_t>& begin) {
+  std::vector<uint8_t> colour(w.P.size() / 3, UINT8_MAX);
+  begin.assign(kSerialColour + 2, 0);
+  for (const uint32_t v : order) {
+    if (!active[v]) continue;
+    uint64_t used = 0;
+    for (uint32_t i = vf_offsets[v]; i < vf_offsets[v + 1]; ++i)
+      for (uint32_t h = 3 * vf[i]; h < 3 * vf[i] + 3; ++h)
+        if (colour[w.T[h]] < kSerialColour) used |= uint64_t(1) << colour[w.T[h]];
+    colour[v] = uint8_t(~used ? std::countr_zero(~used) : kSerialColour);
+    ++begin[colour[v] + 1];
+  }
+  for (uint32_t k = 0; k <= kSerialColour; ++k) begin[k + 1] += begin[k];
+  std::vector<uint32_t> classes(begin.back());
+  std::vector<uint32_t> fill(begin.begin(), begin.end() - 1);
+  for (const uint32_t v : order)
+    if (active[v]) classes[fill[colour[v]]++] = v;
+  return classes;
+}
+
+// One sweep of tangential relaxation (relax_vertex) over the `active` vertices of `order`,
+// colour class by colour class, each class in parallel (the result does not depend on the
+// thread count). Marks moved vertices in `moved`; returns how many moved.
 uint64_t relax_sweep(Work& w, std::span<const uint32_t> vf_offsets, std::span<const uint32_t> vf,
                      std::span<const uint32_t> order, std::span<const uint8_t> active, const RelaxParams& params,
                      std::vector<uint8_t>& moved) {
-  uint64_t moves = 0;
+  std::vector<uint32_t> begin;
+  const std::vector<uint32_t> classes = colour_classes(w, vf_offsets, vf, order, active, begin);
+  auto ring_of = [&](uint32_t v) { return vf.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]); };
+  tbb::enumerable_thread_specific<std::vector<Vec3>> normals;
+  for (uint32_t k = 0; k < kSerialColour; ++k)
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(begin[k], begin[k + 1], 512), [&](const tbb::blocked_range<uint32_t>& r) {
+      std::vector<Vec3>& old_normal = normals.local();
+      for (uint32_t i = r.begin(); i != r.end(); ++i)
+        if (relax_vertex(w, classes[i], ring_of(classes[i]), params, old_normal)) moved[classes[i]] = 1;
+    });
   std::vector<Vec3> old_normal;
-  for (const uint32_t v : order) {
-    if (!active[v]) continue;
-    const auto ring = vf.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]);
-    const Vec3 p = point(w.P, v);
-    Vec3 mean{0, 0, 0}, normal{0, 0, 0};
-    double q_min_old = 1, q_sum_old = 0, edge_sum = 0;
-    old_normal.clear();
-    for (uint32_t f : ring) {
-      const uint32_t* t = &w.T[3 * size_t(f)];
-      const int kv = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
-      const Vec3 u = point(w.P, t[(kv + 1) % 3]), x = point(w.P, t[(kv + 2) % 3]);
-      const Vec3 n = area_vector(p, u, x);
-      // Each neighbour of an interior vertex is a corner of two ring faces: the mean of the
-      // edge midpoints opposite v is the mean of the neighbours.
-      mean = add(mean, scale(add(u, x), 0.5));
-      edge_sum += norm(sub(u, p));
-      normal = add(normal, n);
-      old_normal.push_back(unit(n));
-      q_min_old = std::min(q_min_old, w.q[f]);
-      q_sum_old += w.q[f];
-    }
-    normal = unit(normal);
-    Vec3 delta = sub(scale(mean, 1.0 / double(ring.size())), p);
-    delta = sub(delta, scale(normal, dot(delta, normal)));  // tangential part only
-    if (norm(delta) * params.step < 0.01 * edge_sum / double(ring.size())) continue;  // nothing to gain
-    const Vec3 target = add(p, scale(delta, params.step));
-    double q_min_new = 1, q_sum_new = 0;
-    bool ok = true;
-    for (size_t i = 0; i < ring.size() && ok; ++i) {
-      const uint32_t* t = &w.T[3 * size_t(ring[i])];
-      const int kv = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
-      const Vec3 u = point(w.P, t[(kv + 1) % 3]), x = point(w.P, t[(kv + 2) % 3]);
-      // Slivers may turn (that is how they fatten) but not fold over.
-      ok = dot(unit(area_vector(target, u, x)), old_normal[i]) >=
-           (w.q[ring[i]] >= kSliverQuality ? params.cos_normal_change : 1e-3);
-      const double q = triangle_quality(target, u, x);
-      q_min_new = std::min(q_min_new, q);
-      q_sum_new += q;
-    }
-    if (!ok || q_sum_new <= q_sum_old || q_min_new < std::min(q_min_old, 0.5)) continue;
-    for (int k = 0; k < 3; ++k) w.P[3 * size_t(v) + k] = float(target[k]);
-    for (uint32_t f : ring) w.q[f] = face_quality(w, f);  // of the float-rounded position
-    moved[v] = 1;
-    ++moves;
-  }
+  for (uint32_t i = begin[kSerialColour]; i < begin[kSerialColour + 1]; ++i)
+    if (relax_vertex(w, classes[i], ring_of(classes[i]), params, old_normal)) moved[classes[i]] = 1;
+  uint64_t moves = 0;
+  for (const uint32_t v : classes) moves += moved[v];
   return moves;
 }
 

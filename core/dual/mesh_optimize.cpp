@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <array>
-#include <bit>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -266,34 +265,6 @@ bool relax_vertex(Work& w, uint32_t v, std::span<const uint32_t> ring, const Rel
   return true;
 }
 
-// The active vertices of `order` in colour classes: greedily, in `order`, each takes the
-// smallest colour none of its ring's vertices has, so no two vertices of a class share a face
-// and a class relaxes in parallel with the same result as one at a time. Vertices of class
-// kSerialColour (every smaller colour taken around them, a valence above 63) relax alone.
-// Returns the classes' vertices, class k at [begin[k], begin[k + 1]). O(Σ ring sizes), serial.
-constexpr uint32_t kSerialColour = 64;
-std::vector<uint32_t> colour_classes(const Work& w, std::span<const uint32_t> vf_offsets, std::span<const uint32_t> vf,
-                                     std::span<const uint32_t> order, std::span<const uint8_t> active,
-                                     std::vector<uint32_t>& begin) {
-  std::vector<uint8_t> colour(w.P.size() / 3, UINT8_MAX);
-  begin.assign(kSerialColour + 2, 0);
-  for (const uint32_t v : order) {
-    if (!active[v]) continue;
-    uint64_t used = 0;
-    for (uint32_t i = vf_offsets[v]; i < vf_offsets[v + 1]; ++i)
-      for (uint32_t h = 3 * vf[i]; h < 3 * vf[i] + 3; ++h)
-        if (colour[w.T[h]] < kSerialColour) used |= uint64_t(1) << colour[w.T[h]];
-    colour[v] = uint8_t(~used ? std::countr_zero(~used) : kSerialColour);
-    ++begin[colour[v] + 1];
-  }
-  for (uint32_t k = 0; k <= kSerialColour; ++k) begin[k + 1] += begin[k];
-  std::vector<uint32_t> classes(begin.back());
-  std::vector<uint32_t> fill(begin.begin(), begin.end() - 1);
-  for (const uint32_t v : order)
-    if (active[v]) classes[fill[colour[v]]++] = v;
-  return classes;
-}
-
 // One sweep of tangential relaxation (relax_vertex) over the `active` vertices of `order`,
 // colour class by colour class, each class in parallel (the result does not depend on the
 // thread count). Marks moved vertices in `moved`; returns how many moved.
@@ -301,7 +272,7 @@ uint64_t relax_sweep(Work& w, std::span<const uint32_t> vf_offsets, std::span<co
                      std::span<const uint32_t> order, std::span<const uint8_t> active, const RelaxParams& params,
                      std::vector<uint8_t>& moved) {
   std::vector<uint32_t> begin;
-  const std::vector<uint32_t> classes = colour_classes(w, vf_offsets, vf, order, active, begin);
+  const std::vector<uint32_t> classes = colour_classes(w.T, vf_offsets, vf, order, active, begin);
   auto ring_of = [&](uint32_t v) { return vf.subspan(vf_offsets[v], vf_offsets[v + 1] - vf_offsets[v]); };
   tbb::enumerable_thread_specific<std::vector<Vec3>> normals;
   for (uint32_t k = 0; k < kSerialColour; ++k)

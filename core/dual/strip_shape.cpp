@@ -40,6 +40,13 @@ struct LoopPlace {
   double s = 0;
 };
 
+// One face of v's fan as it is before a move: the other two corners, the unit normal and
+// whether the face is a sliver (then its normal says nothing) or on the strip.
+struct FanFace {
+  Vec3 u, x, unit_normal;
+  bool sliver = false, strip = false;
+};
+
 struct Strip {
   const MeshView& in;
   const BoundaryLoops& loops;
@@ -73,17 +80,30 @@ struct FanScore {
   }
 };
 
-FanScore fan_score(const Strip& st, uint32_t v, const Vec3& p, const Vec3& n, double cos_turn, double cos_turn_strip) {
-  FanScore score{1, 0};
+// v's fan at its current position, for the fan_score of every candidate place (a move
+// evaluates dozens; the fan does not change meanwhile). O(fan size).
+void take_fan(const Strip& st, uint32_t v, std::vector<FanFace>& fan) {
+  fan.clear();
   const Vec3 old = point(st.P, v);
   for (uint32_t f : st.faces(v)) {
     const uint32_t* t = &st.T[3 * size_t(f)];
     const int kv = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
-    const Vec3 u = point(st.P, t[(kv + 1) % 3]), x = point(st.P, t[(kv + 2) % 3]);
-    const Vec3 n_new = cross(sub(u, p), sub(x, p)), n_old = cross(sub(u, old), sub(x, old));
-    const double q_old = triangle_quality(old, u, x);
-    if (q_old >= kSliverQuality) {
-      if (dot(unit(n_new), unit(n_old)) < (st.strip_face[f] ? cos_turn_strip : cos_turn)) return {};
+    FanFace& ff = fan.emplace_back();
+    ff.u = point(st.P, t[(kv + 1) % 3]), ff.x = point(st.P, t[(kv + 2) % 3]);
+    ff.unit_normal = unit(cross(sub(ff.u, old), sub(ff.x, old)));
+    ff.sliver = triangle_quality(old, ff.u, ff.x) < kSliverQuality;
+    ff.strip = st.strip_face[f] != 0;
+  }
+}
+
+FanScore fan_score(std::span<const FanFace> fan, const Vec3& p, const Vec3& n, double cos_turn, double cos_turn_strip) {
+  FanScore score{1, 0};
+  for (const FanFace& ff : fan) {
+    const Vec3& u = ff.u;
+    const Vec3& x = ff.x;
+    const Vec3 n_new = cross(sub(u, p), sub(x, p));
+    if (!ff.sliver) {
+      if (dot(unit(n_new), ff.unit_normal) < (ff.strip ? cos_turn_strip : cos_turn)) return {};
     } else if (dot(n_new, n) <= 0) {
       return {};
     }
@@ -99,7 +119,8 @@ FanScore fan_score(const Strip& st, uint32_t v, const Vec3& p, const Vec3& n, do
 // FanScore among a sampling of the stretch (by arc length, refined twice around the best).
 // Refused places are those where the boundary between v and a neighbour would leave the chord
 // by more than max_deviation of its length. Returns true when v moved.
-bool slide_strip_vertex(Strip& st, uint32_t v, double max_deviation, double min_allowed, double cos_turn) {
+bool slide_strip_vertex(Strip& st, uint32_t v, double max_deviation, double min_allowed, double cos_turn,
+                        std::vector<FanFace>& fan) {
   const LoopPlace here = st.place[v];
   const LoopPlace a = st.place[st.bnbr[v][0]], b = st.place[st.bnbr[v][1]];
   if (a.loop != here.loop || b.loop != here.loop) return false;
@@ -148,7 +169,8 @@ bool slide_strip_vertex(Strip& st, uint32_t v, double max_deviation, double min_
     normal = cross(sub(point(st.in.positions, t[1]), point(st.in.positions, t[0])),
                    sub(point(st.in.positions, t[2]), point(st.in.positions, t[0])));
   }
-  const FanScore current = fan_score(st, v, point(st.P, v), normal, cos_turn, 0.0);
+  take_fan(st, v, fan);
+  const FanScore current = fan_score(fan, point(st.P, v), normal, cos_turn, 0.0);
   FanScore best = current;
   double best_x = -1, best_s = here.s;
   const double total = arc.back();
@@ -162,7 +184,7 @@ bool slide_strip_vertex(Strip& st, uint32_t v, double max_deviation, double min_
       size_t seg;
       const Vec3 q = place_at(x, s, seg);
       if (!chords_ok(q, seg)) continue;
-      const FanScore score = fan_score(st, v, q, normal, cos_turn, 0.0);
+      const FanScore score = fan_score(fan, q, normal, cos_turn, 0.0);
       if (score.q_min > 0 && score.better_than(best)) best = score, best_x = x, best_s = s;
     }
     if (best_x < 0) break;
@@ -181,13 +203,15 @@ bool slide_strip_vertex(Strip& st, uint32_t v, double max_deviation, double min_
 // Moves cluster vertex v on the surface to the best FanScore among: the mean of its neighbours,
 // the apex that makes its worst face equilateral, the mean of those apexes over all its faces;
 // each at 1, 1/2 and 1/4 of the way. Returns true when v moved.
-bool move_cluster_vertex(Strip& st, uint32_t v, uint32_t& surface_face, const Vec3& offset, double cos_turn) {
+bool move_cluster_vertex(Strip& st, uint32_t v, uint32_t& surface_face, const Vec3& offset, double cos_turn,
+                         std::vector<FanFace>& fan) {
   const MeshView& s = st.in;
   const uint32_t* sf = &s.triangles[3 * size_t(surface_face)];
   const Vec3 normal = unit(cross(sub(point(s.positions, sf[1]), point(s.positions, sf[0])),
                                  sub(point(s.positions, sf[2]), point(s.positions, sf[0]))));
   const Vec3 p = point(st.P, v);
-  const FanScore current = fan_score(st, v, p, normal, cos_turn, 0.0);
+  take_fan(st, v, fan);
+  const FanScore current = fan_score(fan, p, normal, cos_turn, 0.0);
   if (current.q_min < 0) return false;
   Vec3 mean{0, 0, 0}, apex_mean{0, 0, 0}, worst_apex = p;
   double worst = 2;
@@ -213,7 +237,7 @@ bool move_cluster_vertex(Strip& st, uint32_t v, uint32_t& surface_face, const Ve
     Vec3 on;
     const uint32_t face = closest_point_walk(s, best_face, sub(c, offset), on);
     const Vec3 q = as_float(add(on, offset));
-    const FanScore score = fan_score(st, v, q, normal, cos_turn, 0.0);
+    const FanScore score = fan_score(fan, q, normal, cos_turn, 0.0);
     if (score.q_min > 0 && score.better_than(best)) {
       best = score, best_p = q, best_face = face;
       return true;
@@ -375,13 +399,65 @@ void shape_round(DualMesh& dual, const MeshView& surface, const BoundaryLoops& l
   }
   const double cos_turn = std::cos(options.max_normal_change_deg * std::numbers::pi / 180);
   std::vector<uint8_t> slid(V, 0);
-  for (uint32_t sweep = 0; sweep < options.sweeps; ++sweep) {
+  // Gauss-Seidel sweeps, strip vertices then cluster vertices, each by colour classes (no two
+  // vertices of a class on one face: a class moves in parallel, the same for any thread count).
+  // A vertex's move depends only on its own place and its fan's corners: one that did not move
+  // when last tried, with no fan corner moved since, would not move now and is not tried.
+  const std::vector<uint8_t> all(V, 1);
+  std::vector<uint32_t> strip_begin, cluster_begin;
+  const std::vector<uint32_t> strip_classes = colour_classes(T, st.vf_offsets, st.vf, strip_order, all, strip_begin);
+  const std::vector<uint32_t> cluster_classes = colour_classes(T, st.vf_offsets, st.vf, cluster_order, all, cluster_begin);
+  std::vector<uint8_t> stale(V, 1), moved(V, 0);
+  tbb::enumerable_thread_specific<std::vector<FanFace>> fans;
+  // Tries the stale vertices of one class with `move`, in parallel; returns the moves, whose
+  // fans are then stale.
+  auto run_class = [&](std::span<const uint32_t> members, auto&& move) {
+    auto one = [&](uint32_t v, std::vector<FanFace>& fan) {
+      if (!stale[v]) return;
+      stale[v] = 0;
+      moved[v] = move(v, fan);
+    };
+    if (members.size() > 1)
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, members.size(), 16), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) one(members[i], fans.local());
+      });
+    else
+      for (uint32_t v : members) one(v, fans.local());
     uint64_t moves = 0;
-    for (uint32_t v : strip_order)
-      if (slide_strip_vertex(st, v, options.max_chord_deviation, options.max_spacing_deviation * options.strip_spacing, cos_turn)) ++moves, ++report.strip_moves, slid[v] = 1;
-    for (uint32_t v : cluster_order)
-      if (move_cluster_vertex(st, v, surface_face[v], offset[v], cos_turn)) ++moves, ++report.cluster_moves;
-    if (moves == 0) break;
+    for (uint32_t v : members) {
+      if (!moved[v]) continue;
+      ++moves;
+      moved[v] = 0;
+      for (uint32_t f : st.faces(v))
+        for (int k = 0; k < 3; ++k) stale[T[3 * size_t(f) + k]] = 1;
+    }
+    return moves;
+  };
+  auto run_classes = [&](const std::vector<uint32_t>& classes, const std::vector<uint32_t>& begin, auto&& move) {
+    uint64_t moves = 0;
+    for (uint32_t k = 0; k <= kSerialColour; ++k) {
+      const std::span<const uint32_t> members(classes.data() + begin[k], begin[k + 1] - begin[k]);
+      if (k < kSerialColour) {
+        moves += run_class(members, move);
+      } else {
+        for (uint32_t v : members) moves += run_class({&v, 1}, move);  // one at a time
+      }
+    }
+    return moves;
+  };
+  const double min_allowed = options.max_spacing_deviation * options.strip_spacing;
+  for (uint32_t sweep = 0; sweep < options.sweeps; ++sweep) {
+    const uint64_t slides = run_classes(strip_classes, strip_begin, [&](uint32_t v, std::vector<FanFace>& fan) {
+      const bool m = slide_strip_vertex(st, v, options.max_chord_deviation, min_allowed, cos_turn, fan);
+      if (m) slid[v] = 1;
+      return m;
+    });
+    const uint64_t shifts = run_classes(cluster_classes, cluster_begin, [&](uint32_t v, std::vector<FanFace>& fan) {
+      return move_cluster_vertex(st, v, surface_face[v], offset[v], cos_turn, fan);
+    });
+    report.strip_moves += slides;
+    report.cluster_moves += shifts;
+    if (slides + shifts == 0) break;
   }
   // A slid vertex now lies on input edge floor(s) (or at its first vertex): its sources follow.
   for (uint32_t v : strip_order) {

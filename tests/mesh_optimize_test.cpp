@@ -5,6 +5,7 @@
 #include "streamcvd/core/dual/placement.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <cmath>
 #include <cstdio>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "streamcvd/core/mesh/errors.h"
+#include "streamcvd/core/mesh/vertex_faces.h"
 #include "streamcvd/core/measure/mesh_stats.h"
 #include "streamcvd/core/remesh.h"
 #include "streamcvd/core/measure/shapes.h"
@@ -164,6 +166,64 @@ TEST(MeshOptimize, FlatGridImprovesAndKeepsItsBoundaryAndFixedVertices) {
   optimize_mesh_quality(again.positions, again.triangles, movable, nullptr, {});
   EXPECT_EQ(again.positions, m.positions);
   EXPECT_EQ(again.triangles, m.triangles);
+}
+
+// The colour classes the Gauss-Seidel passes run in parallel: every active vertex in exactly one
+// class, in the given order within it, and no two vertices of a class on one face.
+TEST(MeshOptimize, ColourClassesPutNoTwoVerticesOfAFaceTogether) {
+  const MeshBuffers m = make_icosphere(3);
+  std::vector<uint32_t> offsets, faces, order, begin;
+  build_vertex_faces(m.triangles, m.vertex_count(), offsets, faces);
+  for (uint32_t v = m.vertex_count(); v-- > 0;) order.push_back(v);  // any order the caller likes
+  std::vector<uint8_t> active(m.vertex_count(), 1);
+  for (uint32_t v = 0; v < m.vertex_count(); v += 7) active[v] = 0;
+  const std::vector<uint32_t> classes = colour_classes(m.triangles, offsets, faces, order, active, begin);
+  ASSERT_EQ(begin.size(), kSerialColour + 2);
+  std::vector<int> class_of(m.vertex_count(), -1);
+  uint32_t used = 0;
+  for (uint32_t k = 0; k <= kSerialColour; ++k) {
+    used += begin[k + 1] > begin[k];
+    for (uint32_t i = begin[k]; i < begin[k + 1]; ++i) {
+      EXPECT_EQ(class_of[classes[i]], -1) << "vertex in two classes";
+      class_of[classes[i]] = int(k);
+      if (i > begin[k]) EXPECT_GT(classes[i - 1], classes[i]) << "not in the order given";
+    }
+  }
+  for (uint32_t v = 0; v < m.vertex_count(); ++v) EXPECT_EQ(class_of[v] >= 0, active[v] != 0) << v;
+  EXPECT_EQ(begin[kSerialColour + 1] - begin[kSerialColour], 0u);  // valence 5-6: no vertex alone
+  EXPECT_GE(used, 3u);   // a triangle needs three
+  EXPECT_LE(used, 8u);   // greedy on valence <= 6
+  for (uint32_t f = 0; f < m.face_count(); ++f)
+    for (int a = 0; a < 3; ++a)
+      for (int b = a + 1; b < 3; ++b) {
+        const uint32_t u = m.triangles[3 * f + a], w = m.triangles[3 * f + b];
+        if (class_of[u] >= 0 && class_of[w] >= 0) EXPECT_NE(class_of[u], class_of[w]) << "face " << f;
+      }
+}
+
+// The relaxation runs its colour classes in parallel: the same result for any thread count.
+TEST(MeshOptimize, SameResultForAnyThreadCount) {
+  MeshBuffers input = make_icosphere(5);  // 10,242 vertices: several tasks per class
+  uint32_t seed = 7;
+  for (float& x : input.positions) {
+    seed = seed * 1664525u + 1013904223u;
+    x += 0.002f * (float(seed >> 8) / float(1u << 24) - 0.5f);
+  }
+  std::vector<float> first_positions;
+  std::vector<uint32_t> first_triangles;
+  for (int threads : {1, 2, 4}) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    MeshBuffers m = input;
+    const MeshOptimizeReport r = optimize_free(m);
+    EXPECT_GT(r.moves, 1000u);
+    if (first_positions.empty()) {
+      first_positions = m.positions, first_triangles = m.triangles;
+      EXPECT_NE(first_positions, input.positions);
+    } else {
+      EXPECT_EQ(m.positions, first_positions) << threads << " threads";
+      EXPECT_EQ(m.triangles, first_triangles) << threads << " threads";
+    }
+  }
 }
 
 TEST(MeshOptimize, MovedVerticesLandOnTheSurface) {

@@ -1,5 +1,7 @@
 // The stages of remesh() from the repaired clustering to the output (core/remesh_stages.h): the
 // dual, the placement of its vertices, the quality pass, the checks, the carried attributes.
+#include <tbb/parallel_invoke.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -154,18 +156,24 @@ OutputChecks check_output(Job& job, const Clusters& c, const BoundaryLoops& loop
   if (dual.mesh.face_count() == 0 && mesh.face_count() > 0)
     throw InputError("cannot build a valid surface with N=" + std::to_string(job.options.vertices) +
                      " vertices: the mesh's features are thinner than a cluster at this budget; use a larger N");
-  const std::vector<uint32_t> component_of_cluster = component_of_each_cluster(c.labels, c.budget, c.K);
-  const std::vector<ComponentShape> shapes = input_component_shapes(
-      mesh, c.budget.component_of_vertex, uint32_t(c.budget.clusters_per_component.size()), loops);
-  checks.components =
-      check_component_topology(shapes, dual.mesh.view(), dual.cluster_of_output_vertex, component_of_cluster);
+  // The component check (mostly serial) beside the others, which only read.
+  tbb::parallel_invoke(
+      [&] {
+        const std::vector<uint32_t> component_of_cluster = component_of_each_cluster(c.labels, c.budget, c.K);
+        const std::vector<ComponentShape> shapes = input_component_shapes(
+            mesh, c.budget.component_of_vertex, uint32_t(c.budget.clusters_per_component.size()), loops);
+        checks.components =
+            check_component_topology(shapes, dual.mesh.view(), dual.cluster_of_output_vertex, component_of_cluster);
+      },
+      [&] {
+        checks.strips = strip_face_quality(dual.mesh.positions, dual.mesh.triangles, dual.cluster_of_output_vertex);
+        checks.clusters_connected = clusters_connected(mesh, c.labels, c.K);
+      });
   const InputClosure input = input_closure(mesh);
   checks.input_euler_characteristic = input.euler_characteristic;
   checks.output_euler_characteristic = checks.components.output_euler_characteristic;
   checks.topology_changed = input.closed && (checks.output_euler_characteristic != checks.input_euler_characteristic ||
                                              placement.defects_removed.faces_removed > 0);
-  checks.strips = strip_face_quality(dual.mesh.positions, dual.mesh.triangles, dual.cluster_of_output_vertex);
-  checks.clusters_connected = clusters_connected(mesh, c.labels, c.K);
   job.seconds.checks = job.elapsed();
   return checks;
 }

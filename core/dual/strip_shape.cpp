@@ -332,6 +332,74 @@ void boundary_neighbours(std::span<const uint32_t> T, std::span<const uint32_t> 
   });
 }
 
+// Gauss-Seidel sweeps (at most options.sweeps, until one moves nothing): the strip vertices
+// slide, then the cluster vertices move, each set by colour classes (no two vertices of a class
+// on one face: a class moves in parallel, the same for any thread count). A vertex's move
+// depends only on its own place and its fan's corners: one that did not move when last tried,
+// with no fan corner moved since, would not move now and is not tried. Marks slid strip vertices.
+void sweep_vertices(Strip& st, std::span<const uint32_t> strip_order, std::span<const uint32_t> cluster_order,
+                    std::span<uint32_t> surface_face, std::span<const Vec3> offset, const StripShapeOptions& options,
+                    double cos_turn, std::vector<uint8_t>& slid, StripShapeReport& report) {
+  const uint32_t V = uint32_t(st.vf_offsets.size() - 1);
+  const std::span<const uint32_t> T = st.T;
+  const std::vector<uint8_t> all(V, 1);
+  std::vector<uint32_t> strip_begin, cluster_begin;
+  const std::vector<uint32_t> strip_classes = colour_classes(T, st.vf_offsets, st.vf, strip_order, all, strip_begin);
+  const std::vector<uint32_t> cluster_classes = colour_classes(T, st.vf_offsets, st.vf, cluster_order, all, cluster_begin);
+  std::vector<uint8_t> stale(V, 1), moved(V, 0);
+  tbb::enumerable_thread_specific<std::vector<FanFace>> fans;
+  // Tries the stale vertices of one class with `move`, in parallel; returns the moves, whose
+  // fans are then stale.
+  auto run_class = [&](std::span<const uint32_t> members, auto&& move) {
+    auto one = [&](uint32_t v, std::vector<FanFace>& fan) {
+      if (!stale[v]) return;
+      stale[v] = 0;
+      moved[v] = move(v, fan);
+    };
+    if (members.size() > 1)
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, members.size(), 16), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) one(members[i], fans.local());
+      });
+    else
+      for (uint32_t v : members) one(v, fans.local());
+    uint64_t moves = 0;
+    for (uint32_t v : members) {
+      if (!moved[v]) continue;
+      ++moves;
+      moved[v] = 0;
+      for (uint32_t f : st.faces(v))
+        for (int k = 0; k < 3; ++k) stale[T[3 * size_t(f) + k]] = 1;
+    }
+    return moves;
+  };
+  auto run_classes = [&](const std::vector<uint32_t>& classes, const std::vector<uint32_t>& begin, auto&& move) {
+    uint64_t moves = 0;
+    for (uint32_t k = 0; k <= kSerialColour; ++k) {
+      const std::span<const uint32_t> members(classes.data() + begin[k], begin[k + 1] - begin[k]);
+      if (k < kSerialColour) {
+        moves += run_class(members, move);
+      } else {
+        for (uint32_t v : members) moves += run_class({&v, 1}, move);  // one at a time
+      }
+    }
+    return moves;
+  };
+  const double min_allowed = options.max_spacing_deviation * options.strip_spacing;
+  for (uint32_t sweep = 0; sweep < options.sweeps; ++sweep) {
+    const uint64_t slides = run_classes(strip_classes, strip_begin, [&](uint32_t v, std::vector<FanFace>& fan) {
+      const bool m = slide_strip_vertex(st, v, options.max_chord_deviation, min_allowed, cos_turn, fan);
+      if (m) slid[v] = 1;
+      return m;
+    });
+    const uint64_t shifts = run_classes(cluster_classes, cluster_begin, [&](uint32_t v, std::vector<FanFace>& fan) {
+      return move_cluster_vertex(st, v, surface_face[v], offset[v], cos_turn, fan);
+    });
+    report.strip_moves += slides;
+    report.cluster_moves += shifts;
+    if (slides + shifts == 0) break;
+  }
+}
+
 // One round of shape_boundary_strips on the current connectivity: set-up, then the sweeps.
 void shape_round(DualMesh& dual, const MeshView& surface, const BoundaryLoops& loops, std::span<const uint8_t> movable,
                  std::span<uint32_t> surface_face, const StripShapeOptions& options, StripShapeReport& report) {
@@ -399,66 +467,7 @@ void shape_round(DualMesh& dual, const MeshView& surface, const BoundaryLoops& l
   }
   const double cos_turn = std::cos(options.max_normal_change_deg * std::numbers::pi / 180);
   std::vector<uint8_t> slid(V, 0);
-  // Gauss-Seidel sweeps, strip vertices then cluster vertices, each by colour classes (no two
-  // vertices of a class on one face: a class moves in parallel, the same for any thread count).
-  // A vertex's move depends only on its own place and its fan's corners: one that did not move
-  // when last tried, with no fan corner moved since, would not move now and is not tried.
-  const std::vector<uint8_t> all(V, 1);
-  std::vector<uint32_t> strip_begin, cluster_begin;
-  const std::vector<uint32_t> strip_classes = colour_classes(T, st.vf_offsets, st.vf, strip_order, all, strip_begin);
-  const std::vector<uint32_t> cluster_classes = colour_classes(T, st.vf_offsets, st.vf, cluster_order, all, cluster_begin);
-  std::vector<uint8_t> stale(V, 1), moved(V, 0);
-  tbb::enumerable_thread_specific<std::vector<FanFace>> fans;
-  // Tries the stale vertices of one class with `move`, in parallel; returns the moves, whose
-  // fans are then stale.
-  auto run_class = [&](std::span<const uint32_t> members, auto&& move) {
-    auto one = [&](uint32_t v, std::vector<FanFace>& fan) {
-      if (!stale[v]) return;
-      stale[v] = 0;
-      moved[v] = move(v, fan);
-    };
-    if (members.size() > 1)
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, members.size(), 16), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) one(members[i], fans.local());
-      });
-    else
-      for (uint32_t v : members) one(v, fans.local());
-    uint64_t moves = 0;
-    for (uint32_t v : members) {
-      if (!moved[v]) continue;
-      ++moves;
-      moved[v] = 0;
-      for (uint32_t f : st.faces(v))
-        for (int k = 0; k < 3; ++k) stale[T[3 * size_t(f) + k]] = 1;
-    }
-    return moves;
-  };
-  auto run_classes = [&](const std::vector<uint32_t>& classes, const std::vector<uint32_t>& begin, auto&& move) {
-    uint64_t moves = 0;
-    for (uint32_t k = 0; k <= kSerialColour; ++k) {
-      const std::span<const uint32_t> members(classes.data() + begin[k], begin[k + 1] - begin[k]);
-      if (k < kSerialColour) {
-        moves += run_class(members, move);
-      } else {
-        for (uint32_t v : members) moves += run_class({&v, 1}, move);  // one at a time
-      }
-    }
-    return moves;
-  };
-  const double min_allowed = options.max_spacing_deviation * options.strip_spacing;
-  for (uint32_t sweep = 0; sweep < options.sweeps; ++sweep) {
-    const uint64_t slides = run_classes(strip_classes, strip_begin, [&](uint32_t v, std::vector<FanFace>& fan) {
-      const bool m = slide_strip_vertex(st, v, options.max_chord_deviation, min_allowed, cos_turn, fan);
-      if (m) slid[v] = 1;
-      return m;
-    });
-    const uint64_t shifts = run_classes(cluster_classes, cluster_begin, [&](uint32_t v, std::vector<FanFace>& fan) {
-      return move_cluster_vertex(st, v, surface_face[v], offset[v], cos_turn, fan);
-    });
-    report.strip_moves += slides;
-    report.cluster_moves += shifts;
-    if (slides + shifts == 0) break;
-  }
+  sweep_vertices(st, strip_order, cluster_order, surface_face, offset, options, cos_turn, slid, report);
   // A slid vertex now lies on input edge floor(s) (or at its first vertex): its sources follow.
   for (uint32_t v : strip_order) {
     if (!slid[v]) continue;

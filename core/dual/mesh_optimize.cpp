@@ -339,6 +339,53 @@ uint64_t project_moved(Work& w, const MeshView& surface, std::span<uint32_t> sur
   return projected;
 }
 
+// The relaxation sweeps (each followed by flips where vertices moved), then the projection of
+// the moved vertices onto the surface (when there is one). Returns the vertices moved; adds the
+// flips to `flips`.
+uint64_t relax_and_project(Work& w, std::span<const uint8_t> movable, const MeshView* surface,
+                           std::span<uint32_t> surface_face, const MeshOptimizeOptions& options,
+                           std::vector<uint32_t>& stack, std::vector<uint8_t>& queued, uint64_t& flips) {
+  const double deg = std::numbers::pi / 180;
+  const size_t V = w.P.size() / 3;
+  const std::span<const float> positions = w.P;
+  const std::span<const uint32_t> triangles = w.T;
+  const std::vector<uint8_t> free =
+      free_vertices(w, movable, surface_face, surface != nullptr, std::cos(options.feature_angle_deg * deg));
+  std::vector<uint32_t> order;
+  for (uint32_t v = 0; v < V; ++v)
+    if (free[v]) order.push_back(v);
+  // By surface face (the input's faces are in spatial order): the projection walks then visit
+  // the input surface in a cache-friendly order.
+  if (surface)
+    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return surface_face[a] < surface_face[b]; });
+  std::vector<Vec3> original(V);
+  for (uint32_t v : order) original[v] = point(positions, v);
+  std::vector<uint8_t> active = free, moved(V, 0), ever_moved(V, 0);
+  std::vector<uint32_t> vf_offsets, vf;
+  const RelaxParams params{options.relax_step, std::cos(options.max_normal_change_deg * deg)};
+  for (uint32_t it = 0; it < options.relax_iterations; ++it) {
+    build_vertex_faces(triangles, V, vf_offsets, vf);
+    std::fill(moved.begin(), moved.end(), 0);
+    if (relax_sweep(w, vf_offsets, vf, order, active, params, moved) == 0) break;
+    // Flips and the next sweep only where something moved: the faces around moved vertices.
+    std::fill(active.begin(), active.end(), 0);
+    for (size_t v = 0; v < V; ++v) {
+      if (!moved[v]) continue;
+      ever_moved[v] = 1;
+      for (uint32_t i = vf_offsets[v]; i < vf_offsets[v + 1]; ++i)
+        for (uint32_t h = 3 * vf[i]; h < 3 * vf[i] + 3; ++h) {
+          active[triangles[h]] = free[triangles[h]];
+          if (!queued[h]) stack.push_back(h), queued[h] = 1;
+        }
+    }
+    flips += flip_pass(w, stack, queued);
+  }
+  uint64_t moves = 0;
+  for (uint32_t v : order) moves += ever_moved[v];
+  if (surface) project_moved(w, *surface, surface_face, order, ever_moved, original, options.keep_surface_offset);
+  return moves;
+}
+
 }  // namespace
 
 // A straight walk in the surface (Devillers et al. 2002, "Walking in a triangulation") towards
@@ -427,39 +474,7 @@ MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<u
     if (w.twin[h] > int64_t(h)) stack.push_back(uint32_t(h)), queued[h] = 1;
   report.flips += flip_pass(w, stack, queued);
 
-  const std::vector<uint8_t> free =
-      free_vertices(w, movable, surface_face, surface != nullptr, std::cos(options.feature_angle_deg * deg));
-  std::vector<uint32_t> order;
-  for (uint32_t v = 0; v < V; ++v)
-    if (free[v]) order.push_back(v);
-  // By surface face (the input's faces are in spatial order): the projection walks then visit
-  // the input surface in a cache-friendly order.
-  if (surface)
-    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return surface_face[a] < surface_face[b]; });
-  std::vector<Vec3> original(V);
-  for (uint32_t v : order) original[v] = point(positions, v);
-  std::vector<uint8_t> active = free, moved(V, 0), ever_moved(V, 0);
-  std::vector<uint32_t> vf_offsets, vf;
-  const RelaxParams params{options.relax_step, std::cos(options.max_normal_change_deg * deg)};
-  for (uint32_t it = 0; it < options.relax_iterations; ++it) {
-    build_vertex_faces(triangles, V, vf_offsets, vf);
-    std::fill(moved.begin(), moved.end(), 0);
-    if (relax_sweep(w, vf_offsets, vf, order, active, params, moved) == 0) break;
-    // Flips and the next sweep only where something moved: the faces around moved vertices.
-    std::fill(active.begin(), active.end(), 0);
-    for (size_t v = 0; v < V; ++v) {
-      if (!moved[v]) continue;
-      ever_moved[v] = 1;
-      for (uint32_t i = vf_offsets[v]; i < vf_offsets[v + 1]; ++i)
-        for (uint32_t h = 3 * vf[i]; h < 3 * vf[i] + 3; ++h) {
-          active[triangles[h]] = free[triangles[h]];
-          if (!queued[h]) stack.push_back(h), queued[h] = 1;
-        }
-    }
-    report.flips += flip_pass(w, stack, queued);
-  }
-  for (uint32_t v : order) report.moves += ever_moved[v];
-  if (surface) project_moved(w, *surface, surface_face, order, ever_moved, original, options.keep_surface_offset);
+  if (options.relax_iterations > 0) report.moves = relax_and_project(w, movable, surface, surface_face, options, stack, queued, report.flips);
   q_sum = 0;
   for (size_t f = 0; f < F; ++f) q_sum += w.q[f];
   report.q_avg_after = F ? q_sum / double(F) : 0;

@@ -143,6 +143,34 @@ TEST(HoleClosing, ASlitClosesByATriangulationOfItsRing) {
   EXPECT_GE(cluster_faces, 8u);  // a ring of 10 clusters: 8 triangles
 }
 
+TEST(HoleClosing, AClusterMeetingASlitTwiceKeepsItOpenAndIsNamed) {
+  // The slit's ring has distinct clusters: it closes and names none. Give one cluster above the
+  // slit to the one below it: that cluster meets the slit on both sides, the ring cannot close
+  // (the disc would pinch it), the slit keeps its strip, and the cluster is the one the repair
+  // is told to split (core/dual/repair.cpp).
+  const MeshStore store = unrenumbered(slit_grid());
+  const MeshView m = store.view();
+  const int blocks = kSide / kBlock + 1;
+  const uint32_t K = uint32_t(blocks * blocks);
+  std::vector<int32_t> labels = block_labels(m.vertex_count(), kSide, blocks);
+  const double h = kBlock * (1.0 / kCells);
+  const DualMeshOptions slits{.close_hole_diameter = 2 * h, .close_hole_width = 0.5 * h, .strip_spacing = h};
+  auto open_clusters = [&](uint32_t& strip_vertices) {
+    std::vector<uint32_t> sizes(K, 0);
+    for (int32_t c : labels) ++sizes[c];
+    std::vector<int32_t> open;
+    boundary_strip_faces(m, find_boundary_loops(m), labels, K, sizes, slits, strip_vertices, &open);
+    return open;
+  };
+  uint32_t closed_strips = 0, open_strips = 0;
+  EXPECT_TRUE(open_clusters(closed_strips).empty());
+  const int32_t below = 3 * blocks + 3, above = 4 * blocks + 3;
+  for (int32_t& c : labels)
+    if (c == above) c = below;
+  EXPECT_EQ(open_clusters(open_strips), std::vector<int32_t>{below});
+  EXPECT_GT(open_strips, closed_strips);  // the slit's strip
+}
+
 TEST(HoleClosing, ADiagonalOfAHoleClosedBeforeIsBarred) {
   // The slit's ring of 10 clusters, triangulated once freely and once with one of its
   // diagonals taken by an earlier hole: two holes closed with the same diagonal would give

@@ -186,7 +186,9 @@ TEST(MeshOptimize, ColourClassesPutNoTwoVerticesOfAFaceTogether) {
     for (uint32_t i = begin[k]; i < begin[k + 1]; ++i) {
       EXPECT_EQ(class_of[classes[i]], -1) << "vertex in two classes";
       class_of[classes[i]] = int(k);
-      if (i > begin[k]) EXPECT_GT(classes[i - 1], classes[i]) << "not in the order given";
+      if (i > begin[k]) {
+        EXPECT_GT(classes[i - 1], classes[i]) << "not in the order given";
+      }
     }
   }
   for (uint32_t v = 0; v < m.vertex_count(); ++v) EXPECT_EQ(class_of[v] >= 0, active[v] != 0) << v;
@@ -197,7 +199,9 @@ TEST(MeshOptimize, ColourClassesPutNoTwoVerticesOfAFaceTogether) {
     for (int a = 0; a < 3; ++a)
       for (int b = a + 1; b < 3; ++b) {
         const uint32_t u = m.triangles[3 * f + a], w = m.triangles[3 * f + b];
-        if (class_of[u] >= 0 && class_of[w] >= 0) EXPECT_NE(class_of[u], class_of[w]) << "face " << f;
+        if (class_of[u] >= 0 && class_of[w] >= 0) {
+          EXPECT_NE(class_of[u], class_of[w]) << "face " << f;
+        }
       }
 }
 

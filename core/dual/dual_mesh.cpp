@@ -169,10 +169,12 @@ bool close_hole(const MeshView& mesh, std::span<const uint32_t> loop, std::span<
 // Appends the §VI-D strip of every boundary loop: for each change of cluster a → b along the
 // loop, a vertex p at the middle of that boundary edge and the triangles (p, b, a) and
 // (p, p_next, b). Loops meeting fewer than three clusters, and loops below the output
-// resolution (options.close_hole_diameter, close_hole_width), close instead.
+// resolution (options.close_hole_diameter, close_hole_width), close instead; those that cannot
+// (a cluster met twice round them) list that cluster in `open_hole_clusters` (may be null).
 void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
                          std::span<const uint32_t> output_of_cluster, std::span<const uint32_t> cluster_size,
-                         const DualMeshOptions& options, DualMesh& dual, std::vector<dual::Face>& faces) {
+                         const DualMeshOptions& options, DualMesh& dual, std::vector<dual::Face>& faces,
+                         std::vector<int32_t>* open_hole_clusters) {
   const float* P = mesh.positions.data();
   dual.loops_skipped = loops.skipped;
   std::vector<uint64_t> diagonals;  // of the holes closed so far (close_hole)
@@ -213,6 +215,13 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
     if ((narrow || slit) && close_hole(mesh, loop, changes, labels, output_of_cluster, narrow, diagonals, dual, faces)) {
       ++dual.holes_closed;
       continue;
+    }
+    if ((narrow || slit) && open_hole_clusters) {  // the clusters met twice keep it open
+      std::vector<int32_t> ring;
+      for (uint32_t k : changes) ring.push_back(labels[loop[(k + 1) % n]]);
+      std::sort(ring.begin(), ring.end());
+      for (size_t i = 1; i < ring.size(); ++i)
+        if (ring[i] == ring[i - 1] && (i < 2 || ring[i] != ring[i - 2])) open_hole_clusters->push_back(ring[i]);
     }
     // One strip point per change, except that consecutive changes whose midpoints coincide
     // (coincident input vertices) share one point, so no strip triangle is flat; with a strip
@@ -329,7 +338,8 @@ double typical_dual_edge(double area, uint32_t clusters) {
 
 std::vector<dual::Face> boundary_strip_faces(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
                                          uint32_t cluster_count, std::span<const uint32_t> cluster_size,
-                                         const DualMeshOptions& options, uint32_t& strip_vertices) {
+                                         const DualMeshOptions& options, uint32_t& strip_vertices,
+                                         std::vector<int32_t>* open_hole_clusters) {
   // The strip code reads chord ends back from the output positions: give it a scratch dual
   // whose first cluster_count vertices stand for the clusters (identity numbering).
   DualMesh scratch;
@@ -339,7 +349,7 @@ std::vector<dual::Face> boundary_strip_faces(const MeshView& mesh, const Boundar
   std::vector<uint32_t> identity(cluster_count);
   std::iota(identity.begin(), identity.end(), 0u);
   std::vector<dual::Face> faces;
-  add_boundary_strips(mesh, loops, labels, identity, cluster_size, options, scratch, faces);
+  add_boundary_strips(mesh, loops, labels, identity, cluster_size, options, scratch, faces, open_hole_clusters);
   strip_vertices = scratch.mesh.vertex_count() - cluster_count;
   return faces;
 }
@@ -368,10 +378,10 @@ DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, 
   if (options.boundary_strips) {
     std::vector<dual::Face> strips;
     if (boundary_loops) {
-      add_boundary_strips(mesh, *boundary_loops, labels, output_of_cluster, cluster_size, options, dual, strips);
+      add_boundary_strips(mesh, *boundary_loops, labels, output_of_cluster, cluster_size, options, dual, strips, nullptr);
     } else {
       BoundaryLoops loops = find_boundary_loops(mesh);
-      add_boundary_strips(mesh, loops, labels, output_of_cluster, cluster_size, options, dual, strips);
+      add_boundary_strips(mesh, loops, labels, output_of_cluster, cluster_size, options, dual, strips, nullptr);
     }
     emitted += strips.size();
     dual::merge_faces(faces, std::move(strips));

@@ -120,6 +120,15 @@ uint32_t add_strip_vertex(DualMesh& dual, const float* p, std::span<const uint32
   return id;
 }
 
+// The ring of clusters round a loop: for each change (a loop position k whose edge
+// loop[k] → loop[k+1] changes cluster), the cluster the change leads into.
+std::vector<int32_t> ring_of_changes(std::span<const uint32_t> loop, std::span<const uint32_t> changes,
+                                     std::span<const int32_t> labels) {
+  std::vector<int32_t> ring(changes.size());
+  for (size_t t = 0; t < changes.size(); ++t) ring[t] = labels[loop[(changes[t] + 1) % loop.size()]];
+  return ring;
+}
+
 // Closes a hole below the output resolution in the dual when the clusters around it are
 // distinct: each change a → b of the loop (`changes`: loop positions k whose edge
 // loop[k] → loop[k+1] changes cluster) gives the dual edge b → a on the hole's side, and the
@@ -135,8 +144,7 @@ bool close_hole(const MeshView& mesh, std::span<const uint32_t> loop, std::span<
                 std::span<const int32_t> labels, std::span<const uint32_t> output_of_cluster, bool narrow,
                 std::vector<uint64_t>& diagonals, DualMesh& dual, std::vector<dual::Face>& faces) {
   const size_t n = loop.size(), m = changes.size();
-  std::vector<int32_t> ring(m);
-  for (size_t t = 0; t < m; ++t) ring[t] = labels[loop[(changes[t] + 1) % n]];
+  const std::vector<int32_t> ring = ring_of_changes(loop, changes, labels);
   std::vector<int32_t> sorted = ring;
   std::sort(sorted.begin(), sorted.end());
   if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) return false;
@@ -217,11 +225,10 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
       continue;
     }
     if ((narrow || slit) && open_hole_clusters) {  // the clusters met twice keep it open
-      std::vector<int32_t> ring;
-      for (uint32_t k : changes) ring.push_back(labels[loop[(k + 1) % n]]);
+      std::vector<int32_t> ring = ring_of_changes(loop, changes, labels);
       std::sort(ring.begin(), ring.end());
       for (size_t i = 1; i < ring.size(); ++i)
-        if (ring[i] == ring[i - 1] && (i < 2 || ring[i] != ring[i - 2])) open_hole_clusters->push_back(ring[i]);
+        if (ring[i] == ring[i - 1]) open_hole_clusters->push_back(ring[i]);  // the caller dedupes
     }
     // One strip point per change, except that consecutive changes whose midpoints coincide
     // (coincident input vertices) share one point, so no strip triangle is flat; with a strip

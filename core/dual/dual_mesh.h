@@ -85,7 +85,8 @@ DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, 
 /// from cluster_count up (`strip_vertices` receives their count). Same faces, up to that
 /// renumbering, as build_dual_mesh adds. O(boundary size). Deterministic. `open_hole_clusters`,
 /// when given, receives the clusters that keep a hole below the output resolution open: each
-/// meets it in two stretches or more, so the hole cannot close as a disc and keeps a strip.
+/// meets it in two stretches or more, so the hole cannot close as a disc and keeps a strip
+/// (appended, possibly more than once: sort and dedupe).
 std::vector<std::array<uint32_t, 3>> boundary_strip_faces(const MeshView& mesh, const BoundaryLoops& loops,
                                                           std::span<const int32_t> labels, uint32_t cluster_count,
                                                           std::span<const uint32_t> cluster_size,

@@ -76,6 +76,28 @@ TEST(FlatFaces, NonFlatMeshIsUntouched) {
   EXPECT_EQ(T, before);
 }
 
+TEST(FlatFaces, ShortEdgeOnADebrisPieceIsSpreadApart) {
+  // A closed five-vertex debris piece of dragon ×121 → 1M (1.5 % of an output edge wide), whose
+  // vertices 2 and 4 nearly coincide: faces (0, 4, 2) and (1, 2, 4) were flat, and no nudge of a
+  // few ulps gave both an area (the job failed its degenerate check). A separate triangle sets
+  // the bounding box, hence the flat threshold, as the rest of the dragon did.
+  std::vector<float> P = {-0.057800442f,  0.156051546f,  -0.013250513f,  -0.0578002483f, 0.156058893f,
+                          -0.0132580092f, -0.0578002296f, 0.156054422f,  -0.01325355f,   -0.0578005314f,
+                          0.15605469f,    -0.0132537624f, -0.0578002259f, 0.156054333f,  -0.0132534513f,
+                          0.2f,           0.156f,        -0.013f,        0.2f,           0.2f,
+                          -0.013f,        0.2f,           0.156f,        0.03f};
+  std::vector<uint32_t> T = {0, 2, 3, 0, 3, 4, 0, 4, 2, 1, 2, 4, 1, 3, 2, 1, 4, 3, 5, 6, 7};
+  const std::vector<float> before = P;
+  EXPECT_EQ(compute_topology_stats(TriangleSoupView{P, T}).degenerate_faces, 2u);
+  const FlatFaceRepair r = repair_flat_faces(P, T);
+  EXPECT_EQ(r.remaining, 0u);
+  EXPECT_EQ(r.faces_removed + r.flips, 0u);
+  EXPECT_GE(r.nudges, 1u);
+  EXPECT_EQ(T.size(), 21u);
+  for (size_t i = 0; i < P.size(); ++i) EXPECT_NEAR(P[i], before[i], 1e-5) << i;  // stays within the piece
+  expect_clean(P, T, 3);  // the closed piece (χ = 2) and the triangle (χ = 1)
+}
+
 TEST(FlatFaces, DragonSeedsWithCollinearStripsHaveNoFlatFace) {
   // At N = 20000 (metric I) seeds 10 and 15 gave one flat strip triangle each (dropped), seeds
   // 35 and 45 one (nudged), with the chunk-wise initial sampling (the global one had such

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <vector>
 
 namespace streamcvd {
 
@@ -120,6 +122,70 @@ bool nudge(std::span<float> P, std::span<const uint32_t> T, const VertexFaces& v
   return false;
 }
 
+// Last resort when no nudge off the line works: m is one end of an edge far shorter than its
+// faces (two flat faces share it), typically on a debris piece a hundredth of an output edge
+// wide, where a move of a few ulps cannot give both faces an area. Tries m at steps of 1/2 …
+// 1/4096 of its mean edge length towards and away from each neighbour, and keeps the position
+// whose worst face is best: each face of m must keep its facing (a flat one: m's normal, the
+// sum of its faces with area) and reach an area of 4·zero2/2. O(degree² · 24).
+bool relocate(std::span<float> P, std::span<const uint32_t> T, const VertexFaces& vf, uint32_t m, double zero2) {
+  const Vec3 p = point(P, m);
+  std::vector<Vec3> reference;
+  Vec3 normal = {0, 0, 0};
+  for (uint32_t f : vf.of(m)) {
+    const uint32_t* t = &T[3 * size_t(f)];
+    reference.push_back(area_vector(point(P, t[0]), point(P, t[1]), point(P, t[2])));
+    if (std::sqrt(dot(reference.back(), reference.back())) > zero2)
+      for (int k = 0; k < 3; ++k) normal[k] += reference.back()[k];
+  }
+  for (Vec3& r : reference)
+    if (std::sqrt(dot(r, r)) <= zero2) r = normal;
+  std::vector<Vec3> neighbours;
+  double mean_length = 0;
+  for (uint32_t f : vf.of(m))
+    for (int i = 0; i < 3; ++i)
+      if (const uint32_t y = T[3 * size_t(f) + i]; y != m) {
+        neighbours.push_back(point(P, y));
+        mean_length += std::sqrt(distance2(p, neighbours.back()));
+      }
+  if (neighbours.empty() || !(mean_length > 0) || !(dot(normal, normal) > 0)) return false;
+  mean_length /= double(neighbours.size());
+  // Worst face of m at the position m has now: its area if it faces as its reference, else minus it.
+  auto worst_face = [&] {
+    double worst = std::numeric_limits<double>::infinity();
+    size_t i = 0;
+    for (uint32_t f : vf.of(m)) {
+      const uint32_t* t = &T[3 * size_t(f)];
+      const Vec3 n = area_vector(point(P, t[0]), point(P, t[1]), point(P, t[2]));
+      const double area = std::sqrt(dot(n, n));
+      worst = std::min(worst, dot(n, reference[i++]) > 0 ? area : -area);
+    }
+    return worst;
+  };
+  const float old[3] = {P[3 * size_t(m)], P[3 * size_t(m) + 1], P[3 * size_t(m) + 2]};
+  float best[3] = {old[0], old[1], old[2]};
+  double best_worst = worst_face();
+  // Unit directions: to each neighbour, and along m's normal.
+  std::vector<Vec3> directions;
+  for (const Vec3& q : neighbours)
+    if (const double d = std::sqrt(distance2(p, q)); d > 0) directions.push_back({(q[0] - p[0]) / d, (q[1] - p[1]) / d, (q[2] - p[2]) / d});
+  const double n = std::sqrt(dot(normal, normal));
+  directions.push_back({normal[0] / n, normal[1] / n, normal[2] / n});
+  for (const Vec3& e : directions) {
+    for (double sign : {-1.0, 1.0})
+      for (double step = mean_length; step > mean_length / 4096; step /= 2) {
+        for (int k = 0; k < 3; ++k) P[3 * size_t(m) + k] = float(p[k] + sign * step * e[k]);
+        if (const double w = worst_face(); w > best_worst) {
+          best_worst = w;
+          for (int k = 0; k < 3; ++k) best[k] = P[3 * size_t(m) + k];
+        }
+      }
+  }
+  const bool clear = best_worst > zero2;
+  for (int k = 0; k < 3; ++k) P[3 * size_t(m) + k] = clear ? best[k] : old[k];
+  return clear;
+}
+
 bool flat(std::span<const float> P, std::span<const uint32_t> T, size_t f, double zero2) {
   const uint32_t a = T[3 * f], b = T[3 * f + 1], c = T[3 * f + 2];
   if (a == kRemoved || a == b || b == c || a == c) return false;  // repeated indices: not ours
@@ -175,8 +241,14 @@ FlatFaceRepair repair_flat_faces(std::span<float> positions, std::vector<uint32_
       std::array<uint32_t, 3> on_edge;
       const uint32_t n = faces_on_edge(T, vf, u, v, on_edge);
       auto try_nudge = [&] {
-        if (!nudge(P, T, vf, u, v, m, zero2)) return;
-        for (uint32_t h : vf.of(m))
+        uint32_t moved = m;
+        if (!nudge(P, T, vf, u, v, m, zero2)) {
+          if (relocate(P, T, vf, m, zero2)) moved = m;
+          else if (relocate(P, T, vf, u, zero2)) moved = u;
+          else if (relocate(P, T, vf, v, zero2)) moved = v;
+          else return;
+        }
+        for (uint32_t h : vf.of(moved))
           for (int i = 0; i < 3; ++i) dirty[T[3 * size_t(h) + i]] = 1;
         ++report.nudges;
         edited = true;

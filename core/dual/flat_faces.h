@@ -5,7 +5,10 @@
 // vertex joins the boundary) or its longest edge is flipped (the middle vertex splits the
 // neighbouring triangle in two). Both keep the mesh manifold, oriented, and keep V and χ.
 // Where neither is safe (the middle vertex is on the boundary already: a bowtie; an ear), the
-// middle vertex moves off the line by the least distance that gives the face an area.
+// middle vertex moves off the line by the least distance that gives the face an area. Where two
+// flat faces share an edge far shorter than their others (a debris piece a hundredth of an output
+// edge wide: no move of a few ulps gives both an area), one end of that edge moves by up to half
+// its mean edge length, to where its worst face is best.
 #pragma once
 
 #include <cstdint>
@@ -17,7 +20,7 @@ namespace streamcvd {
 struct FlatFaceRepair {
   uint64_t faces_removed = 0;  ///< flat faces dropped along the boundary
   uint64_t flips = 0;          ///< flat faces removed by flipping their longest edge
-  uint64_t nudges = 0;         ///< flat faces given area by moving their middle vertex a few ulps
+  uint64_t nudges = 0;         ///< flat faces given area by moving a vertex (a few ulps, or on debris further)
   uint64_t remaining = 0;      ///< flat faces left (no safe edit found)
 };
 

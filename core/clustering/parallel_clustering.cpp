@@ -93,6 +93,8 @@ struct RegionWork {
 // Sweeps of one visit at most: a region that still moves after this many waits for the next
 // round (its neighbours' frontiers have changed meanwhile anyway).
 constexpr uint32_t kMaxSweeps = 64;
+// A visit testing fewer than 1/kSparseVisit of its region's vertices reads their pages on demand.
+constexpr size_t kSparseVisit = 32;
 
 template <bool kAniso, bool kOffsets>
 class ParallelLoop {
@@ -290,7 +292,17 @@ void ParallelLoop<kAniso, kOffsets>::visit_region(const Partition& p, uint32_t r
   w.moves = 0;
   w.sweeps = 0;
   if (w.cand.empty()) return;
-  const RangeVisit visit(mesh_, "clustering", {p.begin[r], p.begin[r + 1]}, kReadsNeighbours);
+  // Read ahead the region's adjacency only when enough of its candidates will be tested: a
+  // visit whose candidates are nearly all parked (the repair's relaxation, the late rounds)
+  // reads a few pages, and out of core the read-ahead made it read the whole region (dragon
+  // ×121 in 2 GiB: 63 GB read by the repair). Residency only: the work is the same.
+  size_t live = 0;
+  for (uint32_t v : w.cand) {
+    const int32_t a = load_label(labels_, v);
+    live += a >= 0 && (!options_.skip_unchanged || changed_in_[a].load(std::memory_order_relaxed) >= w.last_sweep);
+  }
+  const bool sparse = live * kSparseVisit < size_t(p.begin[r + 1] - p.begin[r]);
+  const RangeVisit visit(mesh_, "clustering", {p.begin[r], p.begin[r + 1]}, sparse ? 0 : kReadsNeighbours);
   // Deterministic mode sweeps once per visit: its regions leave the clusters they share to the
   // other partition and the serial pass, so iterating them alone to quiet would converge the
   // interiors and stop the rounds before the frontiers have.

@@ -3,7 +3,14 @@
 // through it identical to the remesh of the same store in RAM.
 #include "streamcvd/streaming/schedule/chunk_scheduler.h"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <thread>
+#include <vector>
 
 #include <filesystem>
 #include <string>
@@ -11,6 +18,7 @@
 #include "streamcvd/core/remesh.h"
 #include "streamcvd/streaming/io/mesh_io.h"
 #include "streamcvd/streaming/remesh_pipeline.h"
+#include "streamcvd/streaming/store/page_advice.h"
 #include "streamcvd/streaming/store/store.h"
 #include "tests/test_util.h"
 
@@ -101,6 +109,47 @@ TEST(ChunkScheduler, MappedStoreRemeshesAsInRam) {
   }
   const StageVisits* items = find_stage(mapped.schedule, "items");
   EXPECT_EQ(items->vertices, m.mapped.view().vertex_count());  // one pass over every vertex
+}
+
+
+// Linux reads at most its read-ahead window per MADV_WILLNEED call: one call over a large range
+// left all but its first megabytes to page faults. advise_pages must read the whole range.
+TEST(PageAdvice, WillNeedReadsTheWholeRange) {
+  const fs::path file = fs::temp_directory_path() / ("streamcvd_advice_" + std::to_string(::getpid()));
+  const size_t bytes = size_t(48) << 20, page = size_t(::sysconf(_SC_PAGESIZE));
+  {
+    const int fd = ::open(file.c_str(), O_CREAT | O_TRUNC | O_WRONLY, 0600);
+    ASSERT_GE(fd, 0);
+    const std::vector<char> block(1 << 20, 'x');
+    for (size_t done = 0; done < bytes; done += block.size()) ASSERT_EQ(::write(fd, block.data(), block.size()), ssize_t(block.size()));
+    ::fsync(fd);
+    ::posix_fadvise(fd, 0, off_t(bytes), POSIX_FADV_DONTNEED);  // clean pages: dropped from the cache
+    ::close(fd);
+  }
+  const int fd = ::open(file.c_str(), O_RDONLY);
+  ASSERT_GE(fd, 0);
+  void* data = ::mmap(nullptr, bytes, PROT_READ, MAP_SHARED, fd, 0);
+  ::close(fd);
+  ASSERT_NE(data, MAP_FAILED);
+  std::vector<unsigned char> resident(bytes / page);
+  auto resident_pages = [&] {
+    ::mincore(data, bytes, resident.data());
+    size_t n = 0;
+    for (unsigned char r : resident) n += r & 1;
+    return n;
+  };
+  if (resident_pages() > resident.size() / 2) {  // a file system that keeps files in RAM (tmpfs)
+    ::munmap(data, bytes);
+    fs::remove(file);
+    GTEST_SKIP() << "the page cache cannot be dropped here";
+  }
+  advise_pages(data, bytes, MADV_WILLNEED, PageSpan::Covering);
+  size_t n = 0;
+  for (int i = 0; i < 200 && (n = resident_pages()) < resident.size(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(n, resident.size());
+  ::munmap(data, bytes);
+  fs::remove(file);
 }
 
 }  // namespace

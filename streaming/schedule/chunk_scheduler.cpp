@@ -1,21 +1,15 @@
 #include "streamcvd/streaming/schedule/chunk_scheduler.h"
 
 #include <sys/mman.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstring>
 
+#include "streamcvd/streaming/store/page_advice.h"
+
 namespace streamcvd {
 
 namespace {
-
-// madvise over the whole pages of [data, data + bytes) (a neighbour's data may share the edge pages).
-void advise_pages(const void* data, size_t bytes, int advice) {
-  static const uintptr_t page = uintptr_t(::sysconf(_SC_PAGESIZE));
-  const uintptr_t lo = (uintptr_t(data) + page - 1) & ~(page - 1), hi = (uintptr_t(data) + bytes) & ~(page - 1);
-  if (hi > lo) ::madvise(reinterpret_cast<void*>(lo), hi - lo, advice);
-}
 
 constexpr uint8_t kWorkArrays = 0x80;  // resident_ bit: the chunk's per-vertex work-array slices
 
@@ -57,8 +51,9 @@ void ChunkScheduler::advise_work_arrays(uint32_t c, bool will_need) const {
   const Chunk& k = view_.chunks[c];
   for (const auto& [data, size] : work_->file_regions(view_.vertex_count())) {
     const size_t stride = size / view_.vertex_count();
+    // Releasing leaves the edge pages a neighbouring chunk's slice shares.
     advise_pages(static_cast<const std::byte*>(data) + stride * k.vertex_begin, stride * (k.vertex_end - k.vertex_begin),
-                 will_need ? MADV_WILLNEED : MADV_COLD);
+                 will_need ? MADV_WILLNEED : MADV_COLD, will_need ? PageSpan::Covering : PageSpan::Inside);
   }
 }
 

@@ -15,6 +15,7 @@
 #include "streamcvd/core/mesh/anonymous_pages.h"
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/streaming/io/output_file.h"
+#include "streamcvd/streaming/store/page_advice.h"
 
 namespace streamcvd {
 namespace {
@@ -118,17 +119,9 @@ std::vector<std::pair<const void*, size_t>> WorkSpace::file_regions(uint32_t V) 
   return out;
 }
 
-void WorkSpace::will_need(const void* data, size_t bytes) {
-  const uintptr_t page = uintptr_t(::sysconf(_SC_PAGESIZE));
-  const uintptr_t lo = uintptr_t(data) & ~(page - 1);
-  ::madvise(reinterpret_cast<void*>(lo), uintptr_t(data) + bytes - lo, MADV_WILLNEED);
-}
+void WorkSpace::will_need(const void* data, size_t bytes) { advise_pages(data, bytes, MADV_WILLNEED, PageSpan::Covering); }
 
-void WorkSpace::dont_need(const void* data, size_t bytes) {
-  // Only whole pages inside the range: a neighbour's data on a shared page must stay.
-  const uintptr_t page = uintptr_t(::sysconf(_SC_PAGESIZE));
-  const uintptr_t lo = (uintptr_t(data) + page - 1) & ~(page - 1), hi = (uintptr_t(data) + bytes) & ~(page - 1);
-  if (hi > lo) ::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_PAGEOUT);
-}
+// Only whole pages inside the range: a neighbour's data on a shared page must stay.
+void WorkSpace::dont_need(const void* data, size_t bytes) { advise_pages(data, bytes, MADV_PAGEOUT, PageSpan::Inside); }
 
 }  // namespace streamcvd

@@ -18,6 +18,7 @@
 
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/streaming/store/store_clean.h"
+#include "streamcvd/streaming/store/page_advice.h"
 #include "streamcvd/streaming/store/store_layout.h"
 
 namespace streamcvd {
@@ -204,13 +205,11 @@ void MeshStore::advise(uint32_t chunk, Advice advice, uint8_t arrays) const {
                   : advice == Advice::Sequential ? MADV_SEQUENTIAL
                   : advice == Advice::Cold       ? MADV_COLD
                                                  : MADV_RANDOM;
-  const uintptr_t page = uintptr_t(::sysconf(_SC_PAGESIZE));
   auto advise_bytes = [&](int file, uint64_t begin, uint64_t end) {
     const Impl::Mapping& mp = s.mappings[file];
+    end = std::min<uint64_t>(end, mp.length);
     if (!mp.address || begin >= end) return;
-    const uintptr_t base = uintptr_t(mp.address);
-    const uintptr_t lo = (base + begin) & ~(page - 1), hi = std::min<uintptr_t>(base + end, base + mp.length);
-    if (hi > lo) ::madvise(reinterpret_cast<void*>(lo), hi - lo, how);
+    advise_pages(static_cast<const std::byte*>(mp.address) + begin, end - begin, how, PageSpan::Covering);
   };
   if (chunk == kAllChunks) {
     for (int f = 0; f < kArrayCount; ++f) advise_bytes(f, 0, s.mappings[f].length);

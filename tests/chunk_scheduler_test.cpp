@@ -1,6 +1,7 @@
 // The chunk scheduler (streaming/schedule/chunk_scheduler.h): visits counted per stage, chunks read ahead
 // once while resident and released past the budget, and the remesh of a mapped store visited
-// through it identical to the remesh of the same store in RAM.
+// through it identical to the remesh of the same store in RAM; the page advice under it
+// (streaming/store/page_advice.h) reading a whole range ahead.
 #include "streamcvd/streaming/schedule/chunk_scheduler.h"
 
 #include <fcntl.h>
@@ -9,11 +10,10 @@
 #include <unistd.h>
 
 #include <chrono>
-#include <thread>
-#include <vector>
-
 #include <filesystem>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "streamcvd/core/remesh.h"
 #include "streamcvd/streaming/io/mesh_io.h"
@@ -110,7 +110,6 @@ TEST(ChunkScheduler, MappedStoreRemeshesAsInRam) {
   const StageVisits* items = find_stage(mapped.schedule, "items");
   EXPECT_EQ(items->vertices, m.mapped.view().vertex_count());  // one pass over every vertex
 }
-
 
 // Linux reads at most its read-ahead window per MADV_WILLNEED call: one call over a large range
 // left all but its first megabytes to page faults. advise_pages must read the whole range.

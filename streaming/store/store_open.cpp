@@ -17,8 +17,8 @@
 #include <limits>
 
 #include "streamcvd/core/mesh/errors.h"
-#include "streamcvd/streaming/store/store_clean.h"
 #include "streamcvd/streaming/store/page_advice.h"
+#include "streamcvd/streaming/store/store_clean.h"
 #include "streamcvd/streaming/store/store_layout.h"
 
 namespace streamcvd {

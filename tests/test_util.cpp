@@ -7,6 +7,8 @@
 #include <atomic>
 #include <cmath>
 #include <map>
+#include <mutex>
+#include <vector>
 #include <unistd.h>
 
 namespace streamcvd::test {
@@ -26,15 +28,37 @@ void append_shifted(MeshBuffers& soup, const MeshBuffers& piece, float dx, float
   for (uint32_t i : piece.triangles) soup.triangles.push_back(i + offset);
 }
 
+namespace {
+
+// The directories temp_dir made, removed when the test process exits: a suite run leaves
+// nothing in TMPDIR (a crashed test leaves its own, named by its pid).
+struct TempDirs {
+  std::mutex mutex;
+  std::vector<std::filesystem::path> made;
+  ~TempDirs() {
+    std::error_code ignored;
+    for (const auto& p : made) std::filesystem::remove_all(p, ignored);
+  }
+};
+
+TempDirs& temp_dirs() {
+  static TempDirs dirs;
+  return dirs;
+}
+
+}  // namespace
+
 std::filesystem::path temp_dir(const std::string& tag) {
   static std::atomic<int> counter{0};
   auto p = std::filesystem::temp_directory_path() /
            ("streamcvd_test_" + tag + "_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
   std::filesystem::remove_all(p);
   std::filesystem::create_directories(p);
+  TempDirs& dirs = temp_dirs();
+  std::lock_guard lock(dirs.mutex);
+  dirs.made.push_back(p);
   return p;
 }
-
 
 std::vector<uint32_t> pieces_per_cluster(const MeshView& mesh, std::span<const int32_t> labels, uint32_t K) {
   std::vector<uint8_t> seen(mesh.vertex_count(), 0);

@@ -38,7 +38,8 @@ inline ClusteringOptions metric_i_one_thread() {
 }
 /// Appends `piece` to `soup`, moved by (dx, dy, dz): a soup of several components.
 void append_shifted(MeshBuffers& soup, const MeshBuffers& piece, float dx, float dy, float dz = 0);
-/// A fresh empty directory under the system temp dir, unique per call.
+/// A fresh empty directory under the system temp dir, unique per call; removed with its contents
+/// when the test process exits.
 std::filesystem::path temp_dir(const std::string& tag);
 
 /// Expects two stores to hold the same header and the same bytes in every array (positions,

@@ -412,7 +412,10 @@ nlohmann::json remesh_report(const PipelineResult& r, const PipelineOptions& opt
   {  // Always there, so that scripts read one shape: a store in RAM has no scheduler, no stages.
     nlohmann::json stages = nlohmann::json::object();
     for (const StageVisits& s : r.schedule.stages)
-      stages[s.stage] = {{"visits", s.visits}, {"vertices", s.vertices}, {"chunks_fetched", s.chunks_fetched}};
+      stages[s.stage] = {{"visits", s.visits},
+                         {"vertices", s.vertices},
+                         {"chunks_fetched", s.chunks_fetched},
+                         {"chunks_refetched", s.chunks_refetched}};
     j["chunk_visits"] = {{"scheduled", !r.schedule.stages.empty()},
                          {"chunks", r.schedule.chunks},
                          {"resident_budget_bytes", r.schedule.resident_budget_bytes == ~uint64_t(0) ? 0 : r.schedule.resident_budget_bytes},

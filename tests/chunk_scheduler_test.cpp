@@ -1,7 +1,7 @@
-// The chunk scheduler (streaming/schedule/chunk_scheduler.h): visits counted per stage, chunks read ahead
-// once while resident and released past the budget, and the remesh of a mapped store visited
-// through it identical to the remesh of the same store in RAM; the page advice under it
-// (streaming/store/page_advice.h) reading a whole range ahead.
+// The chunk scheduler (streaming/schedule/chunk_scheduler.h): visits counted per stage, chunks read
+// ahead once while resident and released past the budget, scattered-reads brackets, and the
+// remesh of a mapped store visited through it identical to the remesh of the same store in RAM;
+// the page advice under it (streaming/store/page_advice.h) reading a whole range ahead.
 #include "streamcvd/streaming/schedule/chunk_scheduler.h"
 
 #include <fcntl.h>
@@ -10,7 +10,9 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -87,6 +89,55 @@ TEST(ChunkScheduler, CountsVisitsAndReleasesPastTheBudget) {
   nested.leave("later", {0, 1});
   EXPECT_EQ(nested.report().chunks_released, chunks - 1);  // the outer stage's chunks but chunk 0
   EXPECT_EQ(find_stage(nested.report(), "inner")->chunks_fetched, 0u);
+}
+
+// The VmFlags of the mapping holding `address` (/proc/self/smaps): "rr" is MADV_RANDOM.
+std::string mapping_flags(const void* address) {
+  std::ifstream smaps("/proc/self/smaps");
+  const auto a = reinterpret_cast<uintptr_t>(address);
+  bool inside = false;
+  for (std::string line; std::getline(smaps, line);) {
+    uintptr_t lo = 0, hi = 0;
+    if (std::sscanf(line.c_str(), "%lx-%lx ", &lo, &hi) == 2 && line.find('-') < line.find(' ')) inside = a >= lo && a < hi;
+    else if (inside && line.rfind("VmFlags:", 0) == 0) return line;
+  }
+  return "";
+}
+
+// Inside a scattered-reads bracket the store is advised random (no read-around on a fault) and
+// a visit that reads arrays reads its chunks ahead again, since the kernel may have evicted
+// them; a visit that reads none (a sparse clustering round) does not. Nested brackets count.
+TEST(ChunkScheduler, ScatteredReadsAdviseRandomAndReadVisitsAheadAgain) {
+  MappedElephant m;
+  const MeshView view = m.mapped.view();
+  const uint32_t chunks = uint32_t(view.chunks.size());
+  ChunkScheduler s(m.mapped, nullptr, ~uint64_t(0));
+  auto pass = [&](const char* stage, uint8_t arrays) {
+    for (const Chunk& c : view.chunks) {
+      s.enter(stage, {c.vertex_begin, c.vertex_end}, arrays);
+      s.leave(stage, {c.vertex_begin, c.vertex_end});
+    }
+  };
+  const void* lists = view.vertex_vertex.data();
+  const bool smaps = !mapping_flags(lists).empty();
+  pass("before", kReadsNeighbours);
+  if (smaps) EXPECT_EQ(mapping_flags(lists).find(" rr"), std::string::npos);
+  s.scattered_reads(true);
+  s.scattered_reads(true);
+  if (smaps) EXPECT_NE(mapping_flags(lists).find(" rr"), std::string::npos) << mapping_flags(lists);
+  pass("dense", kReadsNeighbours);
+  pass("sparse", 0);
+  s.scattered_reads(false);
+  if (smaps) EXPECT_NE(mapping_flags(lists).find(" rr"), std::string::npos);  // the outer bracket holds
+  s.scattered_reads(false);
+  if (smaps) EXPECT_EQ(mapping_flags(lists).find(" rr"), std::string::npos);
+  pass("after", kReadsNeighbours);
+  const SchedulerReport r = s.report();
+  EXPECT_EQ(find_stage(r, "before")->chunks_fetched, chunks);
+  EXPECT_EQ(find_stage(r, "dense")->chunks_refetched, chunks);
+  EXPECT_EQ(find_stage(r, "sparse")->chunks_refetched, 0u);
+  EXPECT_EQ(find_stage(r, "after")->chunks_refetched, 0u);
+  EXPECT_EQ(find_stage(r, "after")->chunks_fetched, 0u);
 }
 
 TEST(ChunkScheduler, MappedStoreRemeshesAsInRam) {

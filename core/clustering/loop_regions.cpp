@@ -4,8 +4,6 @@
 #include <algorithm>
 #include <utility>
 
-#include "streamcvd/core/clustering/parallel_blocks.h"
-
 namespace streamcvd::detail {
 
 // Region boundaries: each store chunk split into pieces of about `length` vertices (a region
@@ -50,20 +48,11 @@ std::vector<uint32_t> shifted_bounds(const std::vector<uint32_t>& b) {
   return s;
 }
 
-Partition make_partition(const MeshView& mesh, std::vector<uint32_t> bounds, ArrayStorage& storage) {
+Partition allocate_partition(uint32_t vertex_count, std::vector<uint32_t> bounds, ArrayStorage& storage) {
   Partition p;
   p.begin = std::move(bounds);
-  p.interior = LargeArray<uint8_t>(mesh.vertex_count(), storage, "region interior marks");
-  p.region = LargeArray<uint16_t>(mesh.vertex_count(), storage, "vertex regions");
-  for_each_region(p.size(), [&](uint32_t r) {
-    const uint32_t first = p.begin[r], last = p.begin[r + 1];
-    for (uint32_t v = first; v < last; ++v) {
-      p.region[v] = uint16_t(r);
-      // Neighbour lists are sorted (MeshView): the first and last bound them all.
-      const auto nb = mesh.neighbours(v);
-      p.interior[v] = nb.empty() || (nb.front() >= first && nb.back() < last);
-    }
-  });
+  p.interior = LargeArray<uint8_t>(vertex_count, storage, "region interior marks");
+  p.region = LargeArray<uint16_t>(vertex_count, storage, "vertex regions");
   return p;
 }
 

@@ -51,9 +51,18 @@ std::vector<uint32_t> region_bounds(const MeshView& mesh, uint32_t length);
 /// The boundaries shifted by half a region: clusters cut by one partition are inside the other.
 std::vector<uint32_t> shifted_bounds(const std::vector<uint32_t>& bounds);
 
-/// The partition of `bounds`: region and interior mark of every vertex (arrays from `storage`).
-/// O(V), parallel over regions.
-Partition make_partition(const MeshView& mesh, std::vector<uint32_t> bounds, ArrayStorage& storage);
+/// A partition of `bounds` with its per-vertex arrays allocated from `storage`, to be filled by
+/// mark_vertex for every vertex (ParallelLoop::run does it in its one pass over the neighbour
+/// lists). O(regions); the arrays are V bytes and 2·V bytes.
+Partition allocate_partition(uint32_t vertex_count, std::vector<uint32_t> bounds, ArrayStorage& storage);
+
+/// Records that vertex v with sorted neighbour list `nb` lies in region r of `p`: interior when
+/// every neighbour does too (the first and last bound them all). O(1); distinct vertices may be
+/// marked concurrently.
+inline void mark_vertex(Partition& p, uint32_t r, uint32_t v, std::span<const uint32_t> nb) {
+  p.region[v] = uint16_t(r);
+  p.interior[v] = nb.empty() || (nb.front() >= p.begin[r] && nb.back() < p.begin[r + 1]);
+}
 
 /// The census of `labels` (−1 skipped) under partition `p`, for `cluster_count` clusters. O(V),
 /// serial on purpose: three plain adds per vertex (~1 ms per million vertices) cost less than the

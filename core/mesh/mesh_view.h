@@ -72,6 +72,10 @@ class RangeResidency {
   /// `arrays`: the MeshArray bits of the view's arrays the visit reads (the rest is not read ahead).
   virtual void enter(const char* stage, VertexRange range, uint8_t arrays) = 0;
   virtual void leave(const char* stage, VertexRange range) = 0;
+  /// Brackets (nested calls count) a stretch whose reads outside range visits are scattered, as
+  /// in the clustering's late rounds: a page fault should read its page only, not the kernel's
+  /// read-around window, and a visit that reads arrays has them read ahead every time.
+  virtual void scattered_reads(bool begin) { (void)begin; }
 };
 
 /// The arrays of a MeshView a range visit reads, for RangeVisit.
@@ -124,6 +128,22 @@ class RangeVisit {
   RangeResidency* hooks_;
   const char* stage_;
   VertexRange range_;
+};
+
+/// Marks its lifetime as a stretch of scattered reads for the view's residency hooks (if any).
+class ScatteredReads {
+ public:
+  explicit ScatteredReads(const MeshView& mesh) : hooks_(mesh.residency) {
+    if (hooks_) hooks_->scattered_reads(true);
+  }
+  ~ScatteredReads() {
+    if (hooks_) hooks_->scattered_reads(false);
+  }
+  ScatteredReads(const ScatteredReads&) = delete;
+  ScatteredReads& operator=(const ScatteredReads&) = delete;
+
+ private:
+  RangeResidency* hooks_;
 };
 
 }  // namespace streamcvd

@@ -63,6 +63,10 @@ void StageReporter::enter(const char* stage, VertexRange range, uint8_t arrays) 
   if (inner_) inner_->enter(stage, range, arrays);
 }
 
+void StageReporter::scattered_reads(bool begin) {
+  if (inner_) inner_->scattered_reads(begin);
+}
+
 void StageReporter::leave(const char* stage, VertexRange range) {
   if (inner_) inner_->leave(stage, range);
   if (range.end <= range.begin || chunk_end_.empty()) return;

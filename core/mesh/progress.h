@@ -65,6 +65,7 @@ class StageReporter final : public RangeResidency {
 
   void enter(const char* stage, VertexRange range, uint8_t arrays) override;
   void leave(const char* stage, VertexRange range) override;
+  void scattered_reads(bool begin) override;
 
  private:
   void report_locked(bool finished);  // with mutex_ held

@@ -28,6 +28,7 @@ struct StageVisits {
   uint64_t visits = 0;           ///< ranges entered
   uint64_t vertices = 0;         ///< vertices of those ranges (a vertex visited twice counts twice)
   uint64_t chunks_fetched = 0;   ///< chunks read ahead because they were not resident
+  uint64_t chunks_refetched = 0; ///< resident chunks read ahead again inside scattered_reads
 };
 
 struct SchedulerReport {
@@ -46,6 +47,9 @@ class ChunkScheduler final : public RangeResidency {
 
   void enter(const char* stage, VertexRange range, uint8_t arrays) override;
   void leave(const char* stage, VertexRange range) override;
+  /// Inside the bracket the store's arrays and the work files are advised MADV_RANDOM (a fault
+  /// reads its page only) and every visit that reads arrays reads its chunks ahead again.
+  void scattered_reads(bool begin) override;
 
   SchedulerReport report() const;
 
@@ -70,6 +74,7 @@ class ChunkScheduler final : public RangeResidency {
   uint64_t stamp_ = 0;
   uint64_t queued_bytes_ = 0;
   uint64_t released_ = 0;
+  uint32_t scattered_depth_ = 0;        // open scattered_reads(true) brackets
   std::vector<std::pair<const char*, StageVisits>> stages_;
 };
 

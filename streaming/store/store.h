@@ -101,7 +101,7 @@ class MeshStore {
   /// validate_chunk for every chunk, in parallel. O(V + F).
   void validate_all() const;
 
-  enum class Advice { WillNeed, DontNeed, Sequential, Random, Cold };
+  enum class Advice { WillNeed, DontNeed, Sequential, Random, Normal, Cold };
   /// madvise over the chunk's slices of every mapped array (WillNeed before a visit, Cold or
   /// DontNeed after), or over whole arrays with chunk = kAllChunks. A no-op for a store in RAM.
   static constexpr uint32_t kAllChunks = ~uint32_t(0);

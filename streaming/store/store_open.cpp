@@ -204,6 +204,7 @@ void MeshStore::advise(uint32_t chunk, Advice advice, uint8_t arrays) const {
                   : advice == Advice::DontNeed ? MADV_DONTNEED
                   : advice == Advice::Sequential ? MADV_SEQUENTIAL
                   : advice == Advice::Cold       ? MADV_COLD
+                  : advice == Advice::Normal     ? MADV_NORMAL
                                                  : MADV_RANDOM;
   auto advise_bytes = [&](int file, uint64_t begin, uint64_t end) {
     const Impl::Mapping& mp = s.mappings[file];

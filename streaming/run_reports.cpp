@@ -415,7 +415,8 @@ nlohmann::json remesh_report(const PipelineResult& r, const PipelineOptions& opt
       stages[s.stage] = {{"visits", s.visits},
                          {"vertices", s.vertices},
                          {"chunks_fetched", s.chunks_fetched},
-                         {"chunks_refetched", s.chunks_refetched}};
+                         {"chunks_refetched", s.chunks_refetched},
+                         {"bytes_read_ahead", s.bytes_read_ahead}};
     j["chunk_visits"] = {{"scheduled", !r.schedule.stages.empty()},
                          {"chunks", r.schedule.chunks},
                          {"resident_budget_bytes", r.schedule.resident_budget_bytes == ~uint64_t(0) ? 0 : r.schedule.resident_budget_bytes},

@@ -56,19 +56,30 @@ Partition allocate_partition(uint32_t vertex_count, std::vector<uint32_t> bounds
   return p;
 }
 
-Census make_census(const Partition& p, std::span<const int32_t> labels, uint32_t cluster_count) {
+Census make_census(const MeshView& mesh, const Partition& p, std::span<const int32_t> labels, uint32_t cluster_count) {
   Census c;
   c.boundary.assign(cluster_count, 0);
   c.sum.assign(cluster_count, 0);
   c.sum2.assign(cluster_count, 0);
-  for (uint32_t v = 0; v < labels.size(); ++v) {
-    const int32_t l = labels[v];
-    if (l < 0) continue;
-    const uint64_t r = p.region[v];
-    c.boundary[l] += !p.interior[v];
-    c.sum[l] += r;
-    c.sum2[l] += r * r;
+  auto count = [&](uint32_t first, uint32_t last) {
+    for (uint32_t v = first; v < last; ++v) {
+      const int32_t l = labels[v];
+      if (l < 0) continue;
+      const uint64_t r = p.region[v];
+      c.boundary[l] += !p.interior[v];
+      c.sum[l] += r;
+      c.sum2[l] += r * r;
+    }
+  };
+  // Chunk by chunk, so that out of core each chunk's labels and marks are read ahead.
+  uint32_t done = 0;
+  for (const Chunk& k : mesh.chunks) {
+    if (k.vertex_begin != done || k.vertex_end < k.vertex_begin || k.vertex_end > labels.size()) break;
+    const RangeVisit visit(mesh, "clustering", {k.vertex_begin, k.vertex_end}, kReadsWorkArrays);
+    count(k.vertex_begin, k.vertex_end);
+    done = k.vertex_end;
   }
+  count(done, uint32_t(labels.size()));
   return c;
 }
 

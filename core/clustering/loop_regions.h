@@ -66,7 +66,7 @@ inline void mark_vertex(Partition& p, uint32_t r, uint32_t v, std::span<const ui
 
 /// The census of `labels` (−1 skipped) under partition `p`, for `cluster_count` clusters. O(V),
 /// serial on purpose: three plain adds per vertex (~1 ms per million vertices) cost less than the
-/// atomic adds a parallel accumulation would need.
-Census make_census(const Partition& p, std::span<const int32_t> labels, uint32_t cluster_count);
+/// atomic adds a parallel accumulation would need. Visits `mesh`'s chunks in turn (work arrays).
+Census make_census(const MeshView& mesh, const Partition& p, std::span<const int32_t> labels, uint32_t cluster_count);
 
 }  // namespace streamcvd::detail

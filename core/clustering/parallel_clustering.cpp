@@ -95,6 +95,7 @@ struct RegionWork {
 // round (its neighbours' frontiers have changed meanwhile anyway).
 constexpr uint32_t kMaxSweeps = 64;
 // A visit testing fewer than 1/kSparseVisit of its region's vertices reads their pages on demand.
+// (Candidates lie along the clusters that moved: 1/2048 read 25% more at 105M faces.)
 constexpr size_t kSparseVisit = 32;
 
 template <bool kAniso, bool kOffsets>
@@ -416,7 +417,7 @@ uint32_t ParallelLoop<kAniso, kOffsets>::run(ClusteringReport& report, std::span
         }
     }
   });
-  for (const Partition& p : partitions) census_.push_back(make_census(p, std::span<const int32_t>(labels_, V), K_));
+  for (const Partition& p : partitions) census_.push_back(make_census(mesh_, p, std::span<const int32_t>(labels_, V), K_));
 
   uint32_t rounds = 0;
   phase_base_ = 2;  // deterministic stamps: 0 stable, 1 initially active, then phase_base_ + sweep

@@ -66,7 +66,7 @@ std::vector<uint32_t> cluster_sizes(const MeshView& mesh, std::span<const int32_
   // Integer counts: the same whatever the order of the increments.
   tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
-      const RangeVisit visit(mesh, "dual", ranges[i], 0);  // labels only
+      const RangeVisit visit(mesh, "dual", ranges[i], kReadsWorkArrays);  // labels only
       for (uint32_t v = ranges[i].begin; v < ranges[i].end; ++v)
         if (labels[v] >= 0) std::atomic_ref<uint32_t>(size[labels[v]]).fetch_add(1, std::memory_order_relaxed);
     }

@@ -86,6 +86,9 @@ enum MeshArray : uint8_t {
   kReadsVertexFaces = 1u << 3,    ///< vertex_face_offsets and vertex_face
   kReadsFlags = 1u << 4,
   kReadsAllArrays = 0x1f,
+  /// None of the view's arrays, only the job's per-vertex work arrays (read ahead with any
+  /// visit): says that the visit reads them all, for a pass that reads nothing else.
+  kReadsWorkArrays = 1u << 5,
 };
 
 struct MeshView {

@@ -81,11 +81,13 @@ void ChunkScheduler::enter(const char* stage, VertexRange range, uint8_t arrays)
       // Scattered reads: the kernel no longer reads around a fault, so a visit that reads
       // arrays reads them ahead even when they were advised before (they may have been evicted).
       const bool refetch = scattered_depth_ > 0 && arrays != 0;
-      const uint8_t missing = uint8_t((arrays | kWorkArrays) & (refetch ? 0xff : ~resident_[c]));
+      const uint8_t wanted = uint8_t((arrays & kReadsAllArrays) | kWorkArrays);
+      const uint8_t missing = uint8_t(wanted & (refetch ? 0xff : ~resident_[c]));
       if (missing) {
         if (resident_[c] == 0) ++visits.chunks_fetched;
         else if ((missing & ~resident_[c]) == 0) ++visits.chunks_refetched;
         resident_[c] |= missing;
+        visits.bytes_read_ahead += chunk_bytes(c, missing);
         fetch.push_back({c, missing});
       }
     }

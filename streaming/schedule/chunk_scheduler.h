@@ -29,6 +29,7 @@ struct StageVisits {
   uint64_t vertices = 0;         ///< vertices of those ranges (a vertex visited twice counts twice)
   uint64_t chunks_fetched = 0;   ///< chunks read ahead because they were not resident
   uint64_t chunks_refetched = 0; ///< resident chunks read ahead again inside scattered_reads
+  uint64_t bytes_read_ahead = 0; ///< bytes of those chunks' arrays advised MADV_WILLNEED
 };
 
 struct SchedulerReport {

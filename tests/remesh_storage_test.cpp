@@ -69,6 +69,23 @@ TEST(RemeshStorage, WorkFilesGiveTheSameOutputAsRam) {
   }
 }
 
+// Cold arrays (written once, read at the end) take RAM only while half the budget is left for
+// the hot ones that come later: at 105M faces in 2 GiB the component ids took the labels' place.
+TEST(RemeshStorage, ColdArraysLeaveHalfTheRamBudgetToHotOnes) {
+  const uint64_t budget = 1 << 20;
+  WorkSpace work(test::temp_dir("cold-arrays").string(), budget);
+  const LargeArray<uint8_t> hot(600 << 10, work, "hot");
+  EXPECT_EQ(work.ram_bytes(), uint64_t(600 << 10));
+  const LargeArray<uint8_t> cold(100 << 10, work, "cold", ArrayUse::Cold);  // 700 KiB > budget / 2
+  EXPECT_EQ(work.ram_bytes(), uint64_t(600 << 10));
+  EXPECT_EQ(work.file_bytes(), uint64_t(100 << 10));
+  const LargeArray<uint8_t> hot2(300 << 10, work, "hot too");  // 900 KiB <= budget
+  EXPECT_EQ(work.ram_bytes(), uint64_t(900 << 10));
+  WorkSpace roomy(test::temp_dir("cold-arrays-roomy").string(), budget);
+  const LargeArray<uint8_t> small_cold(100 << 10, roomy, "cold", ArrayUse::Cold);
+  EXPECT_EQ(roomy.ram_bytes(), uint64_t(100 << 10));
+}
+
 TEST(RemeshStorage, LabelsAreReturnedOnlyWhenAsked) {
   const MeshBuffers elephant = read_mesh(test::data_path("cgal_elephant.off"));
   const MeshStore store = MeshStore::build(elephant.view());

@@ -112,7 +112,7 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
   // One union-find pass: each range's piece ids go straight into component_of_vertex, and the
   // merge's table turns them into component ids in the pass that sums the parts.
   const RangeFill fill = mesh_graph_fill(mesh);
-  b.component_of_vertex = LargeArray<uint32_t>(V, storage, "component of vertex");
+  b.component_of_vertex = LargeArray<uint32_t>(V, storage, "component of vertex", ArrayUse::Cold);
   std::vector<RangePieces> pieces(ranges.size());
   {
     tbb::enumerable_thread_specific<RangePieceBuilder> builders;

@@ -11,7 +11,7 @@ namespace {
 // keep freed blocks of this size resident in its arenas).
 class RamStorage final : public ArrayStorage {
  public:
-  void* allocate(size_t bytes, const char*) override {
+  void* allocate(size_t bytes, const char*, ArrayUse) override {
     void* p = map_anonymous_pages(bytes);
     if (!p) throw std::bad_alloc();
     return p;

@@ -14,13 +14,19 @@
 
 namespace streamcvd {
 
+/// How an array is used, for a storage that keeps some arrays in RAM and the rest in files.
+enum class ArrayUse : uint8_t {
+  Hot,   ///< read again and again (labels, item data): RAM while the budget lasts
+  Cold,  ///< written once and read at the end (component ids for the checks): a file if any
+};
+
 /// Where LargeArrays get their memory. Implementations are thread-safe.
 class ArrayStorage {
  public:
   virtual ~ArrayStorage() = default;
   /// `bytes` of page-aligned memory reading as zero; `name` labels it in reports. Throws
   /// std::bad_alloc (RAM) or OutputError (a work file that cannot be created).
-  virtual void* allocate(size_t bytes, const char* name) = 0;
+  virtual void* allocate(size_t bytes, const char* name, ArrayUse use) = 0;
   /// Returns memory from allocate() (same size). Never throws.
   virtual void release(void* data, size_t bytes) noexcept = 0;
   /// The range will be used soon / not for a while (madvise on work files; RAM ignores it).
@@ -39,9 +45,10 @@ class LargeArray {
 
  public:
   LargeArray() = default;
-  explicit LargeArray(size_t n, ArrayStorage& storage = ram_storage(), const char* name = "")
+  explicit LargeArray(size_t n, ArrayStorage& storage = ram_storage(), const char* name = "",
+                      ArrayUse use = ArrayUse::Hot)
       : storage_(&storage), size_(n) {
-    if (n > 0) data_ = static_cast<T*>(storage.allocate(n * sizeof(T), name));
+    if (n > 0) data_ = static_cast<T*>(storage.allocate(n * sizeof(T), name, use));
   }
   /// n copies of `value` (a parallel-free fill: use for small arrays or one-off setup).
   LargeArray(size_t n, T value, ArrayStorage& storage = ram_storage(), const char* name = "")

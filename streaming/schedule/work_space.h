@@ -20,14 +20,15 @@ namespace streamcvd {
 
 class WorkSpace final : public ArrayStorage {
  public:
-  /// Arrays go to RAM while the RAM ones total at most `ram_budget` bytes, then to files in
-  /// `folder` ("" = TMPDIR, else /tmp). ram_budget = ~0 keeps everything in RAM.
+  /// Hot arrays go to RAM while the RAM ones total at most `ram_budget` bytes, cold ones while
+  /// they total at most half of it; the rest to files in `folder` ("" = TMPDIR, else /tmp).
+  /// ram_budget = ~0 keeps everything in RAM.
   WorkSpace(std::string folder, uint64_t ram_budget);
   ~WorkSpace() override = default;
 
   /// Throws OutputError "<folder>: cannot create a work file ... : <reason>" (disk full, file
   /// size limit, no such folder).
-  void* allocate(size_t bytes, const char* name) override;
+  void* allocate(size_t bytes, const char* name, ArrayUse use) override;
   void release(void* data, size_t bytes) noexcept override;
   void will_need(const void* data, size_t bytes) override;
   void dont_need(const void* data, size_t bytes) override;

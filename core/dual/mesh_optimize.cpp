@@ -289,6 +289,26 @@ uint64_t relax_sweep(Work& w, std::span<const uint32_t> vf_offsets, std::span<co
   return moves;
 }
 
+// The chunk of `surface` owning face f (faces are sorted by owner vertex, chunk by chunk).
+size_t chunk_of_face(const MeshView& surface, uint32_t f) {
+  const auto ends_after = [](uint64_t face, const Chunk& c) { return face < c.face_end; };
+  const auto it = std::upper_bound(surface.chunks.begin(), surface.chunks.end(), uint64_t(f), ends_after);
+  return std::min<size_t>(size_t(it - surface.chunks.begin()), surface.chunks.size() - 1);
+}
+
+// Boundaries of the runs of `vertices` (sorted by surface face) whose faces lie in one chunk:
+// runs + 1 entries from 0 to vertices.size(); one run when the surface has no chunks.
+std::vector<size_t> runs_by_chunk(const MeshView& surface, std::span<const uint32_t> surface_face,
+                                  std::span<const uint32_t> vertices) {
+  std::vector<size_t> runs = {0};
+  if (!surface.chunks.empty())
+    for (size_t i = 1; i < vertices.size(); ++i)
+      if (chunk_of_face(surface, surface_face[vertices[i]]) != chunk_of_face(surface, surface_face[vertices[i - 1]]))
+        runs.push_back(i);
+  if (runs.back() != vertices.size()) runs.push_back(vertices.size());
+  return runs;
+}
+
 // Puts every moved vertex back onto the surface: the closest surface point of its tangent-plane
 // position, plus its original offset from the surface when keep_offset (QEM points). The
 // tangent-plane drift is second order (move² · curvature), so Q barely changes; a vertex whose
@@ -305,17 +325,28 @@ uint64_t project_moved(Work& w, const MeshView& surface, std::span<uint32_t> sur
     if (moved[v]) to_place.push_back(v);
   std::vector<Vec3> targets(to_place.size());
   std::vector<uint32_t> faces(to_place.size());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, to_place.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      const uint32_t v = to_place[i];
-      Vec3 offset{0, 0, 0}, q;
-      if (keep_offset) {
-        surface_face[v] = closest_point_walk(surface, surface_face[v], original[v], q);
-        offset = sub(original[v], q);
-      }
-      faces[i] = closest_point_walk(surface, surface_face[v], sub(point(w.P, v), offset), q);
-      targets[i] = add(q, offset);
+  auto walk = [&](size_t i) {
+    const uint32_t v = to_place[i];
+    Vec3 offset{0, 0, 0}, q;
+    if (keep_offset) {
+      surface_face[v] = closest_point_walk(surface, surface_face[v], original[v], q);
+      offset = sub(original[v], q);
     }
+    faces[i] = closest_point_walk(surface, surface_face[v], sub(point(w.P, v), offset), q);
+    targets[i] = add(q, offset);
+  };
+  // `order` is sorted by surface face: the walks starting in one chunk of the input are one run
+  // of it, visited with the chunk read ahead (out of core, faults one by one read 3x the input).
+  // Out of core a walk that leaves its chunk faults a page in: read that page only.
+  const std::vector<size_t> runs = runs_by_chunk(surface, surface_face, to_place);
+  const ScatteredReads scattered(surface);
+  tbb::parallel_for(size_t(0), runs.size() - 1, [&](size_t k) {
+    const Chunk* chunk = surface.chunks.empty() ? nullptr : &surface.chunks[chunk_of_face(surface, surface_face[to_place[runs[k]]])];
+    const RangeVisit visit(surface, "optimize", chunk ? VertexRange{chunk->vertex_begin, chunk->vertex_end} : VertexRange{},
+                           kReadsPositions | kReadsTriangles | kReadsVertexFaces);
+    tbb::parallel_for(tbb::blocked_range<size_t>(runs[k], runs[k + 1], 256), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) walk(i);
+    });
   });
   // Applied in order: a move is refused when it would turn a ring face over, the ring as the
   // earlier moves left it.

@@ -38,12 +38,12 @@ void atomic_min(uint64_t& slot, uint64_t key) {
 }
 
 // Runs body(v) for every input vertex, in parallel over index ranges (each a visit of `mesh`'s
-// range when the pass reads the mesh).
+// range reading `arrays` when the pass reads the mesh).
 template <typename Body>
-void for_each_vertex(uint32_t V, const MeshView* mesh, const Body& body) {
+void for_each_vertex(uint32_t V, const MeshView* mesh, uint8_t arrays, const Body& body) {
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, V, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
     if (mesh) {
-      const RangeVisit visit(*mesh, "placement", {r.begin(), r.end()}, kReadsPositions | kReadsTriangles | kReadsVertexFaces);
+      const RangeVisit visit(*mesh, "placement", {r.begin(), r.end()}, arrays);
       for (uint32_t v = r.begin(); v != r.end(); ++v) body(v);
     } else {
       for (uint32_t v = r.begin(); v != r.end(); ++v) body(v);
@@ -128,17 +128,27 @@ std::vector<uint32_t> cluster_anchor_faces(const MeshView& surface, std::span<co
     if (cluster_of_output_vertex[o] >= 0) output_of_cluster[size_t(cluster_of_output_vertex[o])] = uint32_t(o);
   std::vector<uint64_t> nearest(V_out, kNoCandidate);  // (squared distance, input vertex)
   const uint32_t V = uint32_t(std::min<size_t>(surface.vertex_count(), labels.size()));
-  for_each_vertex(V, &surface, [&](uint32_t v) {
+  // Positions and flags only (13 of the store's 84 bytes per vertex): out of core this pass
+  // read the whole store ahead, 3.6 GB at 105M faces.
+  const bool flags = !surface.vertex_flags.empty();
+  for_each_vertex(V, &surface, kReadsPositions | (flags ? kReadsFlags : kReadsVertexFaces), [&](uint32_t v) {
     const int32_t c = labels[v];
-    if (c < 0 || uint32_t(c) >= K || surface.faces_of(v).empty()) return;
+    const bool isolated = flags ? (surface.vertex_flags[v] & kVertexIsolated) != 0 : surface.faces_of(v).empty();
+    if (c < 0 || uint32_t(c) >= K || isolated) return;
     const uint32_t o = output_of_cluster[size_t(c)];
     if (o == UINT32_MAX) return;
     const std::array<double, 3> p = corner(surface.positions.data(), v), q = corner(output_positions.data(), o);
     atomic_min(nearest[o], candidate_key(distance2(p, q), v));
   });
-  std::vector<uint32_t> anchor(V_out, UINT32_MAX);
+  // The nearest vertices' first faces, looked up in vertex order: the face lists are read in
+  // store order, not at random.
+  std::vector<uint32_t> by_vertex;
   for (size_t o = 0; o < V_out; ++o)
-    if (nearest[o] != kNoCandidate) anchor[o] = surface.faces_of(uint32_t(nearest[o]))[0];
+    if (nearest[o] != kNoCandidate) by_vertex.push_back(uint32_t(o));
+  std::sort(by_vertex.begin(), by_vertex.end(),
+            [&](uint32_t a, uint32_t b) { return uint32_t(nearest[a]) < uint32_t(nearest[b]); });
+  std::vector<uint32_t> anchor(V_out, UINT32_MAX);
+  for (uint32_t o : by_vertex) anchor[o] = surface.faces_of(uint32_t(nearest[o]))[0];
   return anchor;
 }
 
@@ -147,7 +157,7 @@ std::vector<uint8_t> remesh_movable_vertices(std::span<const int32_t> labels, co
   const uint32_t K = cluster_count_of(cluster_of_output_vertex);
   std::vector<uint8_t> verbatim(K, 0);
   const uint32_t V = uint32_t(std::min<size_t>(labels.size(), budget.component_of_vertex.size()));
-  for_each_vertex(V, nullptr, [&](uint32_t v) {
+  for_each_vertex(V, nullptr, 0, [&](uint32_t v) {
     const uint32_t comp = budget.component_of_vertex[v];
     if (labels[v] < 0 || uint32_t(labels[v]) >= K || comp >= budget.clusters_per_component.size()) return;
     if (budget.clusters_per_component[comp] >= budget.vertices_per_component[comp]) mark(verbatim[size_t(labels[v])]);
@@ -163,7 +173,7 @@ std::vector<uint8_t> remesh_movable_vertices(std::span<const int32_t> labels, co
 std::vector<uint8_t> clusters_in_large_components(std::span<const int32_t> labels, const ComponentBudget& budget,
                                                   uint32_t cluster_count, uint32_t min_clusters) {
   std::vector<uint8_t> large(cluster_count, 0);
-  for_each_vertex(uint32_t(labels.size()), nullptr, [&](uint32_t v) {
+  for_each_vertex(uint32_t(labels.size()), nullptr, 0, [&](uint32_t v) {
     const uint32_t comp = budget.component_of_vertex[v];
     if (labels[v] >= 0 && comp != UINT32_MAX && budget.clusters_per_component[comp] >= min_clusters)
       mark(large[size_t(labels[v])]);
@@ -175,7 +185,7 @@ std::vector<uint32_t> component_of_each_cluster(std::span<const int32_t> labels,
                                                 uint32_t cluster_count) {
   std::vector<uint32_t> component(cluster_count, UINT32_MAX);
   // A cluster lies in one component: every writer of a slot writes the same value.
-  for_each_vertex(uint32_t(labels.size()), nullptr, [&](uint32_t v) {
+  for_each_vertex(uint32_t(labels.size()), nullptr, 0, [&](uint32_t v) {
     if (labels[v] >= 0)
       std::atomic_ref<uint32_t>(component[size_t(labels[v])])
           .store(budget.component_of_vertex[v], std::memory_order_relaxed);

@@ -6,8 +6,11 @@
 // left by an earlier stage are released (MADV_COLD: the kernel reclaims them first, their
 // contents stay valid); a stage's own chunks are not, its rounds come back to them. Only
 // the arrays a visit says it reads are read ahead (reading a chunk's every array for a stage
-// that needs two of them cost the 105M-face run 70 GB of reads inside 2 GiB). The order of the
-// work never depends on it; only residency does. Counts visits per stage.
+// that needs two of them cost the 105M-face run 70 GB of reads inside 2 GiB). Inside a
+// scattered-reads bracket (the clustering loops, the repair rounds, the projection walks) the
+// mapped files are advised MADV_RANDOM, so a fault outside a visit reads its page and not the
+// device's read-ahead window around it, and dense visits are read ahead every time. The order
+// of the work never depends on it; only residency does. Counts visits per stage.
 #pragma once
 
 #include <cstdint>

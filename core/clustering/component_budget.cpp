@@ -26,8 +26,9 @@ constexpr double kSmallComponentShare = 0.2;
 // in-range edge once).
 RangeFill mesh_graph_fill(const MeshView& mesh) {
   return [&mesh](size_t, VertexRange r, RangePieceBuilder& b) {
+    const bool flags = !mesh.vertex_flags.empty();
     for (uint32_t v = r.begin; v < r.end; ++v) {
-      if (mesh.faces_of(v).empty()) continue;
+      if (flags ? (mesh.vertex_flags[v] & kVertexIsolated) != 0 : mesh.faces_of(v).empty()) continue;
       b.add(v);
       for (uint32_t n : mesh.neighbours(v))
         if (n > v || !r.contains(n)) b.join(v, n);
@@ -116,7 +117,8 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
   std::vector<RangePieces> pieces(ranges.size());
   {
     tbb::enumerable_thread_specific<RangePieceBuilder> builders;
-    for_each_range(mesh, ranges, [&](size_t i) {
+    // The vertex flags say which vertices are on no face: the face lists are not read.
+    for_each_range(mesh, ranges, kReadsNeighbours | kReadsFlags, [&](size_t i) {
       const VertexRange r = ranges[i];
       RangePieceBuilder& builder = builders.local();
       builder.begin(r);
@@ -133,7 +135,7 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
     std::vector<Part> parts;
   };
   tbb::enumerable_thread_specific<Scratch> scratch;
-  for_each_range(mesh, ranges, [&](size_t i) {
+  for_each_range(mesh, ranges, kReadsFlags, [&](size_t i) {
     const VertexRange r = ranges[i];
     for (uint32_t v = r.begin; v < r.end; ++v) {
       uint32_t& c = b.component_of_vertex[v];

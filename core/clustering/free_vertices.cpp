@@ -62,7 +62,7 @@ void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels) {
 
   // Inside every range: the free vertices next to a labelled one of the range are the first
   // layer; those left free by the BFS that touch another range are the first round's candidates.
-  for_each_range(mesh, ranges, [&](size_t i) {
+  for_each_range(mesh, ranges, kReadsNeighbours, [&](size_t i) {
     const VertexRange r = ranges[i];
     Scratch& s = scratch.local();
     s.layer.clear();
@@ -90,7 +90,7 @@ void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels) {
   for (;;) {
     // Across the frontiers, reading only (nobody writes in this step): a candidate takes the
     // label of its lowest-id labelled neighbour in another range.
-    for_each_range(mesh, ranges, [&](size_t i) {
+    for_each_range(mesh, ranges, kReadsNeighbours, [&](size_t i) {
       const VertexRange r = ranges[i];
       offers[i].clear();
       for (uint32_t v : candidates[i]) {
@@ -107,7 +107,7 @@ void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels) {
     if (!any) break;
     // Each range takes its offers and spreads them inside; the neighbours in other ranges of
     // what it labelled are the next round's candidates.
-    for_each_range(mesh, ranges, [&](size_t i) {
+    for_each_range(mesh, ranges, kReadsNeighbours, [&](size_t i) {
       const VertexRange r = ranges[i];
       Scratch& s = scratch.local();
       outbox[i].clear();
@@ -120,7 +120,7 @@ void absorb_free_vertices(const MeshView& mesh, std::span<int32_t> labels) {
     for (std::vector<uint32_t>& c : candidates) c.clear();
     for (const std::vector<uint32_t>& out : outbox)
       for (uint32_t n : out) candidates[range_of(n)].push_back(n);
-    for_each_range(mesh, ranges, [&](size_t i) {
+    for_each_range(mesh, ranges, 0, [&](size_t i) {
       std::vector<uint32_t>& c = candidates[i];
       std::sort(c.begin(), c.end());
       c.erase(std::unique(c.begin(), c.end()), c.end());

@@ -211,7 +211,7 @@ LargeArray<int32_t> initial_sampling(const MeshView& mesh, const ItemData& items
   // Parts and their weights under these items (the sampling items may differ from the budget's).
   std::vector<std::vector<Part>> parts(ranges.size());
   tbb::enumerable_thread_specific<SamplingScratch> scratch;
-  for_each_range(mesh, ranges, [&](size_t i) {
+  for_each_range(mesh, ranges, kReadsFlags, [&](size_t i) {
     SamplingScratch& s = scratch.local();
     sampling::collect_parts(ranges[i], [&](uint32_t v) { return component_of[v]; }, weight, mesh.vertex_flags, s.index, s.parts);
     parts[i] = s.parts;
@@ -271,7 +271,7 @@ LargeArray<int32_t> initial_sampling(const MeshView& mesh, const ItemData& items
     throw std::invalid_argument("initial_sampling: more clusters than int32 labels");
 
   LargeArray<int32_t> label(V, storage, "labels");
-  for_each_range(mesh, ranges, [&](size_t i) {
+  for_each_range(mesh, ranges, kReadsNeighbours, [&](size_t i) {
     sample_range(mesh, weight, component_of, ranges[i], seed + i * kRangeSeedStep, parts[i], target,
                  int32_t(first_label[i]), label.span(), scratch.local());
   });

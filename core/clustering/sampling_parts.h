@@ -20,12 +20,13 @@ namespace streamcvd::sampling {
 
 constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
 
-// fn(i) for every range index, as TBB tasks of one range each, each a visit of its range.
+// fn(i) for every range index, as TBB tasks of one range each, each a visit of its range that
+// reads `arrays` (MeshArray bits: out of core only those are read ahead).
 template <class Fn>
-void for_each_range(const MeshView& mesh, std::span<const VertexRange> ranges, const Fn& fn) {
+void for_each_range(const MeshView& mesh, std::span<const VertexRange> ranges, uint8_t arrays, const Fn& fn) {
   tbb::parallel_for(tbb::blocked_range<size_t>(0, ranges.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
-      const RangeVisit visit(mesh, "sampling", ranges[i], kReadsNeighbours | kReadsVertexFaces | kReadsFlags);
+      const RangeVisit visit(mesh, "sampling", ranges[i], arrays);
       fn(i);
     }
   });

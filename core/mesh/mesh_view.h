@@ -74,7 +74,8 @@ class RangeResidency {
   virtual void leave(const char* stage, VertexRange range) = 0;
   /// Brackets (nested calls count) a stretch whose reads outside range visits are scattered, as
   /// in the clustering's late rounds: a page fault should read its page only, not the kernel's
-  /// read-around window, and a visit that reads arrays has them read ahead every time.
+  /// read-around window, and a visit that reads arrays has them read ahead every time. Must not
+  /// throw (ScatteredReads calls it from its destructor).
   virtual void scattered_reads(bool begin) { (void)begin; }
 };
 

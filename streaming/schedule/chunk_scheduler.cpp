@@ -137,15 +137,20 @@ void ChunkScheduler::leave(const char* stage, VertexRange range) {
 }
 
 void ChunkScheduler::scattered_reads(bool begin) {
-  std::lock_guard lock(mutex_);
-  if (begin ? scattered_depth_++ != 0 : --scattered_depth_ != 0) return;
-  // A fault reads ahead max(read_ahead_kb) of the file around it: 8 MB on the test machine's
-  // disk. In the clustering's late rounds, with the cache smaller than the working set, that
-  // read 190 GB at 105M faces inside 2 GiB for a few MB of touched pages.
-  store_.advise(MeshStore::kAllChunks, begin ? MeshStore::Advice::Random : MeshStore::Advice::Normal);
-  if (work_)
-    for (const auto& [data, size] : work_->file_regions(view_.vertex_count()))
-      advise_pages(data, size, begin ? MADV_RANDOM : MADV_NORMAL, PageSpan::Covering);
+  // Called from ScatteredReads' destructor, maybe while an exception unwinds: advice only, so
+  // a failure (no memory for the list of work files) is dropped rather than thrown.
+  try {
+    std::lock_guard lock(mutex_);
+    if (begin ? scattered_depth_++ != 0 : --scattered_depth_ != 0) return;
+    // A fault reads ahead max(read_ahead_kb) of the file around it: 8 MB on the test machine's
+    // disk. In the clustering's late rounds, with the cache smaller than the working set, that
+    // read 190 GB at 105M faces inside 2 GiB for a few MB of touched pages.
+    store_.advise(MeshStore::kAllChunks, begin ? MeshStore::Advice::Random : MeshStore::Advice::Normal);
+    if (work_)
+      for (const auto& [data, size] : work_->file_regions(view_.vertex_count()))
+        advise_pages(data, size, begin ? MADV_RANDOM : MADV_NORMAL, PageSpan::Covering);
+  } catch (...) {
+  }
 }
 
 SchedulerReport ChunkScheduler::report() const {

@@ -26,9 +26,8 @@ constexpr double kSmallComponentShare = 0.2;
 // in-range edge once).
 RangeFill mesh_graph_fill(const MeshView& mesh) {
   return [&mesh](size_t, VertexRange r, RangePieceBuilder& b) {
-    const bool flags = !mesh.vertex_flags.empty();
     for (uint32_t v = r.begin; v < r.end; ++v) {
-      if (flags ? (mesh.vertex_flags[v] & kVertexIsolated) != 0 : mesh.faces_of(v).empty()) continue;
+      if (mesh.is_isolated(v)) continue;
       b.add(v);
       for (uint32_t n : mesh.neighbours(v))
         if (n > v || !r.contains(n)) b.join(v, n);

@@ -9,8 +9,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 #include <string>
+#include <utility>
 
 #include "streamcvd/core/mesh/bvh.h"
 #include "streamcvd/core/mesh/errors.h"
@@ -296,16 +298,22 @@ size_t chunk_of_face(const MeshView& surface, uint32_t f) {
   return std::min<size_t>(size_t(it - surface.chunks.begin()), surface.chunks.size() - 1);
 }
 
-// Boundaries of the runs of `vertices` (sorted by surface face) whose faces lie in one chunk:
-// runs + 1 entries from 0 to vertices.size(); one run when the surface has no chunks.
-std::vector<size_t> runs_by_chunk(const MeshView& surface, std::span<const uint32_t> surface_face,
-                                  std::span<const uint32_t> vertices) {
-  std::vector<size_t> runs = {0};
-  if (!surface.chunks.empty())
-    for (size_t i = 1; i < vertices.size(); ++i)
-      if (chunk_of_face(surface, surface_face[vertices[i]]) != chunk_of_face(surface, surface_face[vertices[i - 1]]))
-        runs.push_back(i);
-  if (runs.back() != vertices.size()) runs.push_back(vertices.size());
+// The runs of `vertices` (sorted by surface face) whose faces lie in one chunk of `surface`:
+// (first index, the chunk's vertices), closed by (vertices.size(), {}). One run with no
+// vertex range when the surface has no chunks. O(n log chunks).
+std::vector<std::pair<size_t, VertexRange>> runs_by_chunk(const MeshView& surface,
+                                                          std::span<const uint32_t> surface_face,
+                                                          std::span<const uint32_t> vertices) {
+  std::vector<std::pair<size_t, VertexRange>> runs;
+  size_t current = SIZE_MAX;
+  for (size_t i = 0; i < vertices.size(); ++i) {
+    const size_t c = surface.chunks.empty() ? 0 : chunk_of_face(surface, surface_face[vertices[i]]);
+    if (c == current) continue;
+    current = c;
+    runs.push_back({i, surface.chunks.empty() ? VertexRange{}
+                                              : VertexRange{surface.chunks[c].vertex_begin, surface.chunks[c].vertex_end}});
+  }
+  runs.push_back({vertices.size(), {}});
   return runs;
 }
 
@@ -338,13 +346,11 @@ uint64_t project_moved(Work& w, const MeshView& surface, std::span<uint32_t> sur
   // `order` is sorted by surface face: the walks starting in one chunk of the input are one run
   // of it, visited with the chunk read ahead (out of core, faults one by one read 3x the input).
   // Out of core a walk that leaves its chunk faults a page in: read that page only.
-  const std::vector<size_t> runs = runs_by_chunk(surface, surface_face, to_place);
+  const auto runs = runs_by_chunk(surface, surface_face, to_place);
   const ScatteredReads scattered(surface);
   tbb::parallel_for(size_t(0), runs.size() - 1, [&](size_t k) {
-    const Chunk* chunk = surface.chunks.empty() ? nullptr : &surface.chunks[chunk_of_face(surface, surface_face[to_place[runs[k]]])];
-    const RangeVisit visit(surface, "optimize", chunk ? VertexRange{chunk->vertex_begin, chunk->vertex_end} : VertexRange{},
-                           kReadsPositions | kReadsTriangles | kReadsVertexFaces);
-    tbb::parallel_for(tbb::blocked_range<size_t>(runs[k], runs[k + 1], 256), [&](const tbb::blocked_range<size_t>& r) {
+    const RangeVisit visit(surface, "optimize", runs[k].second, kReadsPositions | kReadsTriangles | kReadsVertexFaces);
+    tbb::parallel_for(tbb::blocked_range<size_t>(runs[k].first, runs[k + 1].first, 256), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i != r.end(); ++i) walk(i);
     });
   });

@@ -130,11 +130,9 @@ std::vector<uint32_t> cluster_anchor_faces(const MeshView& surface, std::span<co
   const uint32_t V = uint32_t(std::min<size_t>(surface.vertex_count(), labels.size()));
   // Positions and flags only (13 of the store's 84 bytes per vertex): out of core this pass
   // read the whole store ahead, 3.6 GB at 105M faces.
-  const bool flags = !surface.vertex_flags.empty();
-  for_each_vertex(V, &surface, kReadsPositions | (flags ? kReadsFlags : kReadsVertexFaces), [&](uint32_t v) {
+  for_each_vertex(V, &surface, kReadsPositions | kReadsFlags, [&](uint32_t v) {
     const int32_t c = labels[v];
-    const bool isolated = flags ? (surface.vertex_flags[v] & kVertexIsolated) != 0 : surface.faces_of(v).empty();
-    if (c < 0 || uint32_t(c) >= K || isolated) return;
+    if (c < 0 || uint32_t(c) >= K || surface.is_isolated(v)) return;
     const uint32_t o = output_of_cluster[size_t(c)];
     if (o == UINT32_MAX) return;
     const std::array<double, 3> p = corner(surface.positions.data(), v), q = corner(output_positions.data(), o);

@@ -113,6 +113,11 @@ struct MeshView {
   std::span<const uint32_t> faces_of(uint32_t v) const {
     return vertex_face.subspan(vertex_face_offsets[v], vertex_face_offsets[v + 1] - vertex_face_offsets[v]);
   }
+  /// Whether v is on no face: its kVertexIsolated flag (one byte, kReadsFlags), or its face
+  /// list in a view without flags.
+  bool is_isolated(uint32_t v) const {
+    return vertex_flags.empty() ? faces_of(v).empty() : (vertex_flags[v] & kVertexIsolated) != 0;
+  }
 };
 
 /// Tells the view's residency hooks (if any) that `range` is worked on during its lifetime.

@@ -86,7 +86,7 @@ class BlockPool {
 /// another thread than the appends to other buckets.
 class SpillBuckets {
  public:
-  static constexpr size_t kDefaultBlock = kHugePageBytes;  // one transparent huge page
+  static constexpr size_t kDefaultBlock = kLargeBlockBytes;
   /// block_bytes: a multiple of 4 KiB holding at least one record (smaller blocks for many
   /// buckets under a small budget).
   SpillBuckets(std::string folder, uint32_t bucket_count, uint32_t record_bytes, uint64_t resident_budget,

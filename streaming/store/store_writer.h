@@ -70,7 +70,7 @@ class StoreArrayStream final : public ArrayOutput {
   /// `blocks_in_flight` bounds the blocks waiting for the disk (an append waits beyond it).
   explicit StoreArrayStream(const std::string& path, bool scratch = false, uint32_t blocks_in_flight = 2);
   /// Bytes of one block.
-  static constexpr size_t kBlockBytes = kHugePageBytes;  // one transparent huge page
+  static constexpr size_t kBlockBytes = kLargeBlockBytes;
   ~StoreArrayStream() override;
   void append(const void* data, size_t n) override;
   uint64_t bytes() const override { return bytes_; }

@@ -15,9 +15,10 @@ inline constexpr std::size_t kLargeBlockBytes = std::size_t(2) << 20;
 /// Maps `bytes` of zeroed, page-aligned anonymous memory, or returns nullptr. No huge-page
 /// advice: with the common `defrag=madvise` setting, MADV_HUGEPAGE makes each first touch of a
 /// 2 MiB region compact memory synchronously when no free huge page is at hand, which page
-/// cache makes the usual case. Measured on this 2-core guest (a fresh page is dear here, 1.5-3.5
-/// us): dragon -> 20k took 0.68-1.62 s with the advice (system time up to 1.06 s) and
-/// 0.68-0.75 s without; dragon x9 ingest 1.06-3.59 s against 1.10-1.25 s. Where the kernel
+/// cache makes the usual case (and a memory cgroup, always). Measured on this 2-core guest (a
+/// fresh page is dear here, 1.5-3.5 us): dragon -> 20k took 0.68-1.62 s with the advice (system
+/// time up to 1.06 s) and 0.70-0.75 s without; the 105M-face ingest inside 2 GiB 18-24 s against
+/// 13 s; dragon x9 ingest 1.06-3.59 s against 1.10-1.25 s. Where the kernel
 /// hands out huge pages by itself (`enabled=always`) they still come, without the stalls.
 /// O(1); thread-safe; memory: the pages touched.
 inline void* map_anonymous_pages(std::size_t bytes) noexcept {

@@ -365,6 +365,7 @@ nlohmann::json remesh_report(const PipelineResult& r, const PipelineOptions& opt
                      {"clustering_energy", cr.final_energy},
                      {"repair_rounds", repair.rounds},
                      {"repair_count_rounds", repair.count_rounds},
+                     {"repair_defects_per_round", repair.defects_per_round},
                      {"repaired_clusters", repair.repaired_clusters},
                      {"repair_splits", repair.splits},
                      {"repair_merges", repair.merges},

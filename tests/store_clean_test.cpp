@@ -511,6 +511,11 @@ TEST(StoreClean, AVertexClusteredScanCleansToAManifoldAndRemeshesWithoutDeletion
     const nlohmann::json j = nlohmann::json::parse(test::slurp(report));
     EXPECT_TRUE(j["checks"]["all_ok"].get<bool>()) << j["checks"].dump();
     EXPECT_LE(j["clustering"]["repair_rounds"].get<uint64_t>(), 10u);
+    // One count per check: the first, then one after each round, the last 0 (converged).
+    const nlohmann::json& per_round = j["clustering"]["repair_defects_per_round"];
+    ASSERT_EQ(per_round.size(), j["clustering"]["repair_rounds"].get<size_t>() + 1) << per_round.dump();
+    EXPECT_GT(per_round.front().get<uint32_t>(), 0u) << "the crude mesh starts with defects";
+    EXPECT_EQ(per_round.back().get<uint32_t>(), 0u) << per_round.dump();
     EXPECT_EQ(j["clustering"]["defect_faces_removed"].get<uint64_t>(), 0u);
   }
   fs::remove_all(dir);

@@ -65,6 +65,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   detail::LabelEditor editor(mesh, labels, K, storage);
   detail::DefectTracker tracker(mesh, loops, K, options.dual, editor.index());
   std::vector<int32_t> bad = tracker.check_all(labels);
+  result.defects_per_round.push_back(uint32_t(bad.size()));
   // Output vertices wanted minus those the dual of the current labels has (non-empty clusters
   // plus strip vertices), when a vertex target is set; O(K).
   auto count_change = [&]() -> int64_t {
@@ -145,6 +146,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     result.repair_seconds += seconds_since(t);
     t = std::chrono::steady_clock::now();
     bad = tracker.check_changes(labels, editor.take_log());
+    result.defects_per_round.push_back(uint32_t(bad.size()));
     change = count_change();
     holes = open_holes();
     result.check_seconds += seconds_since(t);

@@ -41,6 +41,9 @@ struct DefectRepairResult {
   uint32_t count_rounds = 0;            ///< of them, rounds that only merged or split for the vertex target
   uint64_t repaired_clusters = 0;       ///< Σ over rounds of the clusters each round changed
   uint64_t splits = 0, merges = 0, islands = 0;
+  /// Clusters on a defect found by the first check, then after each round (rounds + 1 entries
+  /// once the loop ran; the last is 0 when the repair converged): how fast it converges.
+  std::vector<uint32_t> defects_per_round;
   bool relaxed = false;                 ///< a relaxation of the repaired region was kept
   uint64_t defect_vertices = 0;         ///< dual vertices still on a defect at the end
   /// Input-adjacent cluster pairs still without a dual edge at the end (the output would come

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <map>
 #include <numeric>
+#include <set>
 #include <nlohmann/json.hpp>
 
 #include "streamcvd/core/measure/shapes.h"
@@ -83,6 +84,22 @@ MeshBuffers with_duplicates(uint64_t& duplicates) {
     else m.triangles.insert(m.triangles.end(), {b, c, a});
   }
   return m;
+}
+
+// The sphere with faces turned round, as exporters and crude decimations leave them: every
+// 97th face alone, and the fan of faces round one vertex as a patch. `flipped`: their number.
+MeshBuffers with_flipped_faces(const MeshBuffers& m, uint64_t& flipped) {
+  MeshBuffers out = m;
+  const uint32_t centre = out.triangles[3 * 500];
+  std::vector<uint8_t> flip(out.face_count(), 0);
+  for (uint64_t f = 0; f < out.face_count(); ++f) {
+    const uint32_t* t = &out.triangles[3 * f];
+    flip[f] = f % 97 == 0 || t[0] == centre || t[1] == centre || t[2] == centre;
+  }
+  flipped = 0;
+  for (uint64_t f = 0; f < out.face_count(); ++f)
+    if (flip[f]) std::swap(out.triangles[3 * f + 1], out.triangles[3 * f + 2]), ++flipped;
+  return out;
 }
 
 // A sphere with a fin: two triangles standing out of the surface along the edge of face 0.
@@ -167,6 +184,65 @@ TEST(StoreClean, DuplicatedFacesAreDropped) {
   EXPECT_EQ(s.faces, 1280u);
   EXPECT_EQ(s.genus, 0);
   expect_original_positions(store, m);
+}
+
+TEST(StoreClean, FlippedFacesAreTurnedBack) {
+  const MeshBuffers m = sphere();
+  uint64_t flipped = 0;
+  const MeshBuffers input = with_flipped_faces(m, flipped);
+  StoreBuildReport r;
+  MeshStore store = build(input, r);
+  EXPECT_GT(r.screen.misoriented_edges, 0u);
+  EXPECT_FALSE(r.input_topology.consistently_oriented);
+  EXPECT_TRUE(r.cleaning.rebuilt);
+  EXPECT_EQ(r.cleaning.faces_flipped, flipped);  // the smaller side of each misoriented loop
+  EXPECT_EQ(r.cleaning.misoriented_edges_left, 0u);
+  const TopologyStats s = compute_topology_stats(store.view());
+  expect_manifold(s);
+  EXPECT_TRUE(s.closed_manifold);
+  EXPECT_TRUE(s.consistently_oriented);
+  EXPECT_EQ(s.faces, m.face_count());
+  expect_original_positions(store, input);
+  // Every face runs as in the sphere before the flips (up to rotation).
+  std::set<std::array<uint32_t, 3>> original;
+  for (uint64_t f = 0; f < m.face_count(); ++f) {
+    const uint32_t* t = &m.triangles[3 * f];
+    for (int k = 0; k < 3; ++k) original.insert({t[k], t[(k + 1) % 3], t[(k + 2) % 3]});
+  }
+  const auto ids = store.original_vertex_ids();
+  const MeshView v = store.view();
+  for (uint64_t f = 0; f < v.face_count(); ++f) {
+    const uint32_t* t = &v.triangles[3 * f];
+    EXPECT_TRUE(original.contains({ids[t[0]], ids[t[1]], ids[t[2]]})) << f;
+  }
+}
+
+// A Möbius strip, `around` × `across` vertices: not orientable, so some edges stay misoriented
+// whatever is flipped (across − 1 of them, where the strip is joined with its twist).
+MeshBuffers moebius_strip(uint32_t around, uint32_t across) {
+  MeshBuffers m;
+  const double pi = 3.14159265358979323846;
+  for (uint32_t i = 0; i < around; ++i)
+    for (uint32_t j = 0; j < across; ++j) {
+      const double u = 2 * pi * i / around, v = -0.3 + 0.6 * j / (across - 1);
+      m.positions.insert(m.positions.end(), {float((1 + v * std::cos(u / 2)) * std::cos(u)),
+                                             float((1 + v * std::cos(u / 2)) * std::sin(u)), float(v * std::sin(u / 2))});
+    }
+  auto id = [&](uint32_t i, uint32_t j) { return i == around ? across - 1 - j : i * across + j; };
+  for (uint32_t i = 0; i < around; ++i)
+    for (uint32_t j = 0; j + 1 < across; ++j)
+      m.triangles.insert(m.triangles.end(), {id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+  return m;
+}
+
+TEST(StoreClean, ANonOrientableSurfaceKeepsItsMisorientedEdgesAndSaysSo) {
+  StoreBuildReport r;
+  MeshStore store = build(moebius_strip(60, 5), r);
+  EXPECT_GT(r.screen.misoriented_edges, 0u);
+  EXPECT_EQ(r.cleaning.faces_flipped, 0u);  // no flip mends a Möbius strip: none is made
+  EXPECT_EQ(r.cleaning.misoriented_edges_left, 4u);
+  EXPECT_FALSE(r.cleaning.rebuilt);
+  EXPECT_EQ(store.view().face_count(), 60u * 4 * 2);
 }
 
 TEST(StoreClean, FinBecomesAPieceOfItsOwn) {
@@ -362,6 +438,8 @@ TEST(StoreClean, DefectiveInputsRemeshToManifoldOutputs) {
   cases.push_back({"edge", spheres_sharing_an_edge(), 2, 0});
   cases.push_back({"vertex", spheres_sharing_a_vertex(), 2, 0});
   cases.push_back({"book", book(), 2, 0});
+  uint64_t flipped = 0;
+  cases.push_back({"flipped", with_flipped_faces(sphere(), flipped), 1, 0});
   const fs::path dir = test::temp_dir("store_clean_cli");
   for (const Expected& c : cases) {
     const std::string in = (dir / (std::string(c.name) + ".ply")).string();

@@ -290,20 +290,13 @@ MeshStore clean_store_topology(MeshStore&& built, const StoreBuildOptions& optio
   report.input_topology = compute_topology_stats(built.view());
   report.input_topology_known = true;
   report.cleaning.cleaned = report.input_topology;
-  if (!needs_topology_cleaning(report.input_topology, built.view())) {
-    report.cleaning.seconds = seconds();
-    return std::move(built);
-  }
   // Pass 2: the plan, fan by fan. Pass 3: the cleaned soup through the same builder, with the
   // original ids mapped back to the file's (a copy has its vertex's). A cut that did not come
   // apart (an edge still non-manifold) gets a second round dropping its unpaired faces, and a
   // third if that split a vertex into fans once more.
   MeshStore current = std::move(built);
-  constexpr uint32_t kMaxRounds = 3;
   const uint64_t input_vertices = current.header().input_vertex_count;
-  for (uint32_t round = 0; round < kMaxRounds; ++round) {
-    if (progress) progress({"clean"});
-    const CleaningPlan plan = plan_topology_cleaning(current.view(), report.cleaning, round > 0);
+  auto rebuild = [&](const CleaningPlan& plan) {
     StoreBuildOptions o = options;
     o.clean_topology = false;
     const std::span<const uint32_t> original = current.original_vertex_ids();
@@ -322,11 +315,31 @@ MeshStore clean_store_topology(MeshStore&& built, const StoreBuildOptions& optio
     report.chunks = rebuilt.chunks;
     report.spilled_bytes += rebuilt.spilled_bytes;
     report.cleaning.rebuilt = true;
-    report.cleaning.rounds = round + 1;
+    ++report.cleaning.rounds;
     report.cleaning.cleaned = compute_topology_stats(current.view());
-    const TopologyStats& c = report.cleaning.cleaned;
-    if (c.nonmanifold_edges == 0 && c.nonmanifold_vertices == 0) break;
+  };
+  constexpr uint32_t kMaxRounds = 3;
+  if (needs_topology_cleaning(report.input_topology, current.view()))
+    for (uint32_t round = 0; round < kMaxRounds; ++round) {
+      if (progress) progress({"clean"});
+      rebuild(plan_topology_cleaning(current.view(), report.cleaning, round > 0));
+      const TopologyStats& c = report.cleaning.cleaned;
+      if (c.nonmanifold_edges == 0 && c.nonmanifold_vertices == 0) break;
+    }
+  // Pass 4, on the manifold the cuts made: faces turned round where two faces run an edge the
+  // same way (a face flipped by an exporter or a crude decimation, or a sheet the cut paired
+  // the other way round), so that the dual inherits a consistent orientation.
+  if (!report.cleaning.cleaned.consistently_oriented && report.cleaning.cleaned.nonmanifold_edges == 0) {
+    if (progress) progress({"orient"});
+    CleaningPlan plan;
+    plan.vertices = current.view().vertex_count();
+    plan.kept_faces = current.view().face_count();
+    plan.flipped_faces = plan_face_flips(current.view(), report.cleaning.misoriented_edges_left);
+    report.cleaning.faces_flipped = plan.flipped_faces.size();
+    if (!plan.flipped_faces.empty()) rebuild(plan);
   }
+  report.cleaning.seconds = seconds();
+  if (!report.cleaning.rebuilt) return current;
   report.cleaning.seconds = seconds();
   current.impl_->cleaning = cleaning_record(report);
   return current;

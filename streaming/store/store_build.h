@@ -71,6 +71,8 @@ struct TopologyCleaning {
   uint64_t vertices_split = 0;            ///< vertices whose faces fall into several fans
   uint64_t vertex_copies = 0;             ///< vertices added, one per fan beyond the first
   uint64_t unpaired_faces_dropped = 0;    ///< later rounds: unpaired faces of cuts that did not come apart
+  uint64_t faces_flipped = 0;             ///< faces turned round so that the surface is consistently oriented
+  uint64_t misoriented_edges_left = 0;    ///< misoriented edges no flip could mend (a surface not orientable there)
   uint32_t rounds = 0;                    ///< rebuilds (a second or third only when a cut did not come apart)
   double seconds = 0;                     ///< checks, plan, rebuild
   /// The figures of the store as cleaned (those of the input when nothing was rebuilt; unset
@@ -103,7 +105,8 @@ struct StoreBuildReport {
   /// full figures are not computed.
   struct TopologyScreen {
     uint64_t nonmanifold_vertices = 0, repeated_index_faces = 0, isolated_twin_faces = 0;
-    bool any() const { return nonmanifold_vertices + repeated_index_faces + isolated_twin_faces > 0; }
+    uint64_t misoriented_edges = 0;  ///< edges two faces run the same way (each found at its tail)
+    bool any() const { return nonmanifold_vertices + repeated_index_faces + isolated_twin_faces + misoriented_edges > 0; }
   } screen;
   /// clean_topology ran: the screen's verdict, and what the cleaning did. Unset otherwise.
   bool topology_checked = false;

@@ -310,7 +310,27 @@ void RangePass::screen_topology() {
       [&](const tbb::blocked_range<uint32_t>& q, Screen sc) {
         for (uint32_t v = q.begin(); v != q.end(); ++v) {
           sc.nonmanifold_vertices += (a_->flags[v] & kVertexNonManifold) != 0;
-          if (a_->vf_off[v + 1] - a_->vf_off[v] != 2) continue;
+          // Two faces running the same edge v → w the same way: misoriented (counted at v). The
+          // vertex after v in each face, compared pairwise (a sort for the rare large fans).
+          const uint64_t b = a_->vf_off[v], e = a_->vf_off[v + 1];
+          uint32_t next[24];
+          if (e - b <= 24) {
+            for (uint64_t i = b; i < e; ++i) {
+              const uint32_t* t = &tri[3 * size_t(a_->vf[i])];
+              next[i - b] = t[0] == vb_ + v ? t[1] : t[1] == vb_ + v ? t[2] : t[0];
+            }
+            for (uint32_t i = 0; i < e - b; ++i)
+              for (uint32_t j = i + 1; j < e - b; ++j) sc.misoriented_edges += next[i] == next[j];
+          } else {
+            std::vector<uint32_t> all;
+            for (uint64_t i = b; i < e; ++i) {
+              const uint32_t* t = &tri[3 * size_t(a_->vf[i])];
+              all.push_back(t[0] == vb_ + v ? t[1] : t[1] == vb_ + v ? t[2] : t[0]);
+            }
+            std::sort(all.begin(), all.end());
+            for (size_t i = 1; i < all.size(); ++i) sc.misoriented_edges += all[i] == all[i - 1];
+          }
+          if (e - b != 2) continue;
           const uint32_t f = a_->vf[a_->vf_off[v]], g = a_->vf[a_->vf_off[v] + 1];
           // Counted once, at the pair's owner (its smallest corner), when both faces are owned here.
           if (f >= foreign_count_ && corners(f)[0] == vb_ + v && corners(f) == corners(g)) ++sc.isolated_twin_faces;
@@ -321,11 +341,13 @@ void RangePass::screen_topology() {
         a.nonmanifold_vertices += b.nonmanifold_vertices;
         a.repeated_index_faces += b.repeated_index_faces;
         a.isolated_twin_faces += b.isolated_twin_faces;
+        a.misoriented_edges += b.misoriented_edges;
         return a;
       });
   Screen& total = s_.result.report.screen;
   total.nonmanifold_vertices += found.nonmanifold_vertices;
   total.isolated_twin_faces += found.isolated_twin_faces;
+  total.misoriented_edges += found.misoriented_edges;
 }
 
 // Appends one range's arrays to the outputs (on the writer thread), offsets made global.

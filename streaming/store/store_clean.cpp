@@ -470,7 +470,7 @@ void stream_cleaned_soup(const MeshStore& store, const CleaningPlan& plan, MeshS
   const uint64_t F = m.face_count();
   std::vector<uint8_t> keep;
   std::vector<uint32_t> out;
-  size_t move = 0;
+  size_t move = 0, flip = 0;
   uint64_t emitted = 0;
   for (uint64_t f0 = 0; f0 < F; f0 += kBlock) {
     const uint64_t n = std::min<uint64_t>(kBlock, F - f0);
@@ -488,6 +488,8 @@ void stream_cleaned_soup(const MeshStore& store, const CleaningPlan& plan, MeshS
         const bool moved = move < plan.moved_corners.size() && plan.moved_corners[move] == corner;
         out.push_back(moved ? plan.moved_to[move] : m.triangles[3 * f + k]);
       }
+      while (flip < plan.flipped_faces.size() && plan.flipped_faces[flip] < f) ++flip;
+      if (flip < plan.flipped_faces.size() && plan.flipped_faces[flip] == f) std::swap(out[out.size() - 1], out[out.size() - 2]);
     }
     emitted += out.size() / 3;
     if (!out.empty()) sink.triangles(out);
@@ -505,7 +507,7 @@ template <typename Report>
 auto record_fields(Report& r) {
   auto& in = r.input_topology;
   auto& c = r.cleaning;
-  return std::array<std::pair<const char*, decltype(&in.vertices)>, 20>{{
+  return std::array<std::pair<const char*, decltype(&in.vertices)>, 22>{{
       {"input_vertices", &in.vertices},
       {"input_faces", &in.faces},
       {"input_edges", &in.edges},
@@ -525,6 +527,8 @@ auto record_fields(Report& r) {
       {"vertices_split", &c.vertices_split},
       {"vertex_copies", &c.vertex_copies},
       {"unpaired_faces_dropped", &c.unpaired_faces_dropped},
+      {"faces_flipped", &c.faces_flipped},
+      {"misoriented_edges_left", &c.misoriented_edges_left},
       {"input_closed_manifold", nullptr},  // the rest: not uint64_t, handled by name
   }};
 }

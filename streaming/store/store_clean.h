@@ -20,7 +20,10 @@
 //     copy of the vertex (same position and attributes), as CGAL's
 //     duplicate_non_manifold_vertices does;
 //   - of a face and its reverse (a double layer), the orientation its neighbours agree with is
-//     kept; a cut that did not come apart gets another round, dropping its unpaired faces.
+//     kept; a cut that did not come apart gets another round, dropping its unpaired faces;
+//   - last, on the manifold the cuts leave, faces run the wrong way round (two faces running an
+//     edge the same way) are turned back, the smaller region their edges bound
+//     (plan_face_flips, streaming/store/store_orient.cpp).
 // The cleaned soup (the store's vertices, then the copies; its faces in store order, dropped or
 // rewritten) is streamed into the store builder again: the cleaned store is an ordinary store.
 // A cut whose two ends stay joined around both of them (an unpaired face, or a second sheet,
@@ -55,7 +58,16 @@ struct CleaningPlan {
   std::vector<uint32_t> copy_source;     ///< store vertex of copy i (vertex id vertices + i)
   std::vector<uint64_t> moved_corners;   ///< face << 2 | corner slot, ascending
   std::vector<uint32_t> moved_to;        ///< the copy each moved corner takes
+  std::vector<uint64_t> flipped_faces;   ///< faces written the other way round (plan_face_flips), ascending
 };
+
+/// The faces of the manifold store `mesh` to flip so that it is consistently oriented: from
+/// each edge two faces run the same way, the smaller of the two regions that misoriented edges
+/// bound, grown a face at a time from either side (at most max_region_faces each). Edges
+/// whose floods meet (a surface not orientable there) are left and counted in `unresolved`.
+/// Ascending. O(V + Σ degree²) to find the edges, then O(regions flipped); memory O(regions).
+std::vector<uint64_t> plan_face_flips(const MeshView& mesh, uint64_t& unresolved,
+                                      uint64_t max_region_faces = uint64_t(1) << 22);
 
 /// Plans the cleaning of `mesh` (a store view) and adds its counts to `counts` (not `cleaned`).
 /// With drop_unpaired (a later round, on a store cleaned once whose cuts left an edge with more

@@ -326,9 +326,10 @@ MeshStore clean_store_topology(MeshStore&& built, const StoreBuildOptions& optio
       const TopologyStats& c = report.cleaning.cleaned;
       if (c.nonmanifold_edges == 0 && c.nonmanifold_vertices == 0) break;
     }
-  // Pass 4, on the manifold the cuts made: faces turned round where two faces run an edge the
-  // same way (a face flipped by an exporter or a crude decimation, or a sheet the cut paired
-  // the other way round), so that the dual inherits a consistent orientation.
+  // Pass 4, on the manifold the cuts made: faces turned back where two faces run an edge the
+  // same way (a face flipped by an exporter or a crude decimation), so that the dual inherits
+  // a consistent orientation: a dual edge used twice in one direction is a defect no repair
+  // of the clusters can mend.
   if (!report.cleaning.cleaned.consistently_oriented && report.cleaning.cleaned.nonmanifold_edges == 0) {
     if (progress) progress({"orient"});
     CleaningPlan plan;
@@ -340,7 +341,6 @@ MeshStore clean_store_topology(MeshStore&& built, const StoreBuildOptions& optio
   }
   report.cleaning.seconds = seconds();
   if (!report.cleaning.rebuilt) return current;
-  report.cleaning.seconds = seconds();
   current.impl_->cleaning = cleaning_record(report);
   return current;
 }

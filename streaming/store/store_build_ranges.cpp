@@ -295,8 +295,8 @@ void RangePass::local_adjacency(uint32_t) {
 }
 
 // The cleaning's screen over the range (StoreBuildReport::TopologyScreen), from what the
-// adjacency pass has just built: its flagged vertices and its isolated twins (its faces with a
-// repeated index are counted by sort_owned). A duplicate face anywhere else puts a third face
+// adjacency pass has just built: its flagged vertices, its isolated twins and the edges two
+// faces run the same way (its faces with a repeated index are counted by sort_owned). A duplicate face anywhere else puts a third face
 // on one of its edges or a second fan at one of its corners, so the flags show it; only a face
 // and its twin alone (each corner with exactly those two faces) need a look. Exact for any():
 // O(faces) compares and O(n) flag reads, no sort. Runs before the face lists are turned into
@@ -321,7 +321,7 @@ void RangePass::screen_topology() {
             }
             for (uint32_t i = 0; i < e - b; ++i)
               for (uint32_t j = i + 1; j < e - b; ++j) sc.misoriented_edges += next[i] == next[j];
-          } else {
+          } else {  // a vertex of more than 24 faces: rare enough for an allocation
             std::vector<uint32_t> all;
             for (uint64_t i = b; i < e; ++i) {
               const uint32_t* t = &tri[3 * size_t(a_->vf[i])];

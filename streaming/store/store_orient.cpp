@@ -14,9 +14,9 @@
 namespace streamcvd {
 namespace {
 
-// A misoriented edge: two faces around it run it the same way, a → b.
+// A misoriented edge a – b: faces f and g around it both run it a → b (before any flip).
 struct Misoriented {
-  uint32_t f, g;
+  uint32_t f, g, a, b;
 };
 
 // Whether face f (flipped or not) runs a → b.
@@ -50,7 +50,7 @@ std::vector<Misoriented> misoriented_edges(const MeshView& m) {
           const size_t on_edge = size_t(std::count_if(faces.begin(), faces.end(), [&](uint32_t f) {
             return std::find(fb.begin(), fb.end(), f) != fb.end();
           }));
-          if (on_edge == 2) out.push_back({std::min(faces[i], faces[j]), std::max(faces[i], faces[j])});
+          if (on_edge == 2) out.push_back({std::min(faces[i], faces[j]), std::max(faces[i], faces[j]), a, b});
         }
     }
   });
@@ -68,8 +68,7 @@ std::vector<uint64_t> plan_face_flips(const MeshView& m, uint64_t& unresolved, u
   unresolved = 0;
   const std::vector<Misoriented> edges = misoriented_edges(m);
   std::unordered_set<uint32_t> flipped, stuck;
-  // The faces across f's edges that continue it consistently (under the flips so far), and
-  // whether one of its edges is misoriented (an edge a → b run the same way by a neighbour).
+  // The faces across f's edges that continue it consistently, under the flips so far.
   auto neighbours = [&](uint32_t f, std::vector<uint32_t>& out) {
     out.clear();
     const uint32_t* t = &m.triangles[3 * size_t(f)];
@@ -93,7 +92,8 @@ std::vector<uint64_t> plan_face_flips(const MeshView& m, uint64_t& unresolved, u
   // region): left as it is. O(2 · smaller region · degree); memory O(smaller region).
   std::vector<uint32_t> around;
   for (const Misoriented& e : edges) {
-    if (flipped.contains(e.f) || flipped.contains(e.g)) continue;  // mended by a flip
+    // Mended by a flip so far (a region flipped later may take in an earlier one: flips toggle).
+    if (runs(m, e.f, flipped.contains(e.f), e.a, e.b) != runs(m, e.g, flipped.contains(e.g), e.a, e.b)) continue;
     if (stuck.contains(e.f) || stuck.contains(e.g)) {  // on a surface already found not orientable
       ++unresolved;
       continue;
@@ -124,7 +124,8 @@ std::vector<uint64_t> plan_face_flips(const MeshView& m, uint64_t& unresolved, u
       for (const auto& side : seen) stuck.insert(side.begin(), side.end());
       continue;
     }
-    flipped.insert(queue[done].begin(), queue[done].end());
+    for (uint32_t f : queue[done])
+      if (!flipped.erase(f)) flipped.insert(f);
   }
   std::vector<uint64_t> out(flipped.begin(), flipped.end());
   std::sort(out.begin(), out.end());

@@ -66,6 +66,10 @@ inline double double_area(std::span<const float> positions, uint32_t a, uint32_t
 
 inline bool repeated_index(uint32_t a, uint32_t b, uint32_t c) { return a == b || b == c || a == c; }
 
+/// The corner after `v` in face `t` (3 vertex ids holding v): the end of the edge v → next
+/// that the face runs. Two faces with the same next corner after v run an edge the same way.
+inline uint32_t next_corner(const uint32_t* t, uint32_t v) { return t[0] == v ? t[1] : t[1] == v ? t[2] : t[0]; }
+
 /// Degenerate face: a repeated index, or an area ≤ zero_area (a NaN area is not ≤ anything).
 inline bool degenerate(std::span<const float> positions, uint32_t a, uint32_t b, uint32_t c, double zero) {
   return repeated_index(a, b, c) || 0.5 * double_area(positions, a, b, c) <= zero;

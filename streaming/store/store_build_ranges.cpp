@@ -308,28 +308,16 @@ void RangePass::screen_topology() {
   const Screen found = tbb::parallel_reduce(
       tbb::blocked_range<uint32_t>(0, n_, 1 << 14), Screen{},
       [&](const tbb::blocked_range<uint32_t>& q, Screen sc) {
+        std::vector<uint32_t> next;  // the corners after v, reused across the block's vertices
         for (uint32_t v = q.begin(); v != q.end(); ++v) {
           sc.nonmanifold_vertices += (a_->flags[v] & kVertexNonManifold) != 0;
-          // Two faces running the same edge v → w the same way: misoriented (counted at v). The
-          // vertex after v in each face, compared pairwise (a sort for the rare large fans).
+          // Two faces running the same edge v → w the same way: misoriented (counted at v), found
+          // as equal corners after v among its faces.
           const uint64_t b = a_->vf_off[v], e = a_->vf_off[v + 1];
-          uint32_t next[24];
-          if (e - b <= 24) {
-            for (uint64_t i = b; i < e; ++i) {
-              const uint32_t* t = &tri[3 * size_t(a_->vf[i])];
-              next[i - b] = t[0] == vb_ + v ? t[1] : t[1] == vb_ + v ? t[2] : t[0];
-            }
-            for (uint32_t i = 0; i < e - b; ++i)
-              for (uint32_t j = i + 1; j < e - b; ++j) sc.misoriented_edges += next[i] == next[j];
-          } else {  // a vertex of more than 24 faces: rare enough for an allocation
-            std::vector<uint32_t> all;
-            for (uint64_t i = b; i < e; ++i) {
-              const uint32_t* t = &tri[3 * size_t(a_->vf[i])];
-              all.push_back(t[0] == vb_ + v ? t[1] : t[1] == vb_ + v ? t[2] : t[0]);
-            }
-            std::sort(all.begin(), all.end());
-            for (size_t i = 1; i < all.size(); ++i) sc.misoriented_edges += all[i] == all[i - 1];
-          }
+          next.clear();
+          for (uint64_t i = b; i < e; ++i) next.push_back(topology::next_corner(&tri[3 * size_t(a_->vf[i])], vb_ + v));
+          std::sort(next.begin(), next.end());
+          for (size_t i = 1; i < next.size(); ++i) sc.misoriented_edges += next[i] == next[i - 1];
           if (e - b != 2) continue;
           const uint32_t f = a_->vf[a_->vf_off[v]], g = a_->vf[a_->vf_off[v] + 1];
           // Counted once, at the pair's owner (its smallest corner), when both faces are owned here.

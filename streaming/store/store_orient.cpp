@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <unordered_set>
 
+#include "streamcvd/core/mesh/topology_conventions.h"
 #include "streamcvd/streaming/store/store_clean.h"
 
 namespace streamcvd {
@@ -19,14 +20,21 @@ struct Misoriented {
   uint32_t f, g, a, b;
 };
 
-// Whether face f (flipped or not) runs a → b.
+// Whether face f, flipped or not, runs its edge a – b as a → b.
 bool runs(const MeshView& m, uint32_t f, bool flipped, uint32_t a, uint32_t b) {
-  const uint32_t* t = &m.triangles[3 * size_t(f)];
-  for (int k = 0; k < 3; ++k)
-    if (t[k] == a && t[(k + 1) % 3] == b) return !flipped;
-  for (int k = 0; k < 3; ++k)
-    if (t[k] == b && t[(k + 1) % 3] == a) return flipped;
-  return false;
+  return (topology::next_corner(&m.triangles[3 * size_t(f)], a) == b) != flipped;
+}
+
+// The faces on edge a – b (both corners), up to two written to `out`; returns how many.
+uint32_t faces_on_edge(const MeshView& m, uint32_t a, uint32_t b, uint32_t out[2]) {
+  const auto fb = m.faces_of(b);
+  uint32_t n = 0;
+  for (uint32_t f : m.faces_of(a))
+    if (std::find(fb.begin(), fb.end(), f) != fb.end()) {
+      if (n < 2) out[n] = f;
+      ++n;
+    }
+  return n;
 }
 
 // The misoriented edges of the store, each once (at its tail a, smaller face first): pairs of
@@ -38,19 +46,14 @@ std::vector<Misoriented> misoriented_edges(const MeshView& m) {
     auto& out = found.local();
     for (uint32_t a = r.begin(); a != r.end(); ++a) {
       const auto faces = m.faces_of(a);
-      auto next_of = [&](uint32_t f) {
-        const uint32_t* t = &m.triangles[3 * size_t(f)];
-        return t[0] == a ? t[1] : t[1] == a ? t[2] : t[0];
-      };
+      auto next_of = [&](uint32_t f) { return topology::next_corner(&m.triangles[3 * size_t(f)], a); };
       for (size_t i = 0; i < faces.size(); ++i)
         for (size_t j = i + 1; j < faces.size(); ++j) {
           if (faces[i] == faces[j] || next_of(faces[i]) != next_of(faces[j])) continue;
           const uint32_t b = next_of(faces[i]);
-          const auto fb = m.faces_of(b);
-          const size_t on_edge = size_t(std::count_if(faces.begin(), faces.end(), [&](uint32_t f) {
-            return std::find(fb.begin(), fb.end(), f) != fb.end();
-          }));
-          if (on_edge == 2) out.push_back({std::min(faces[i], faces[j]), std::max(faces[i], faces[j]), a, b});
+          uint32_t on_edge[2];
+          if (faces_on_edge(m, a, b, on_edge) == 2)
+            out.push_back({std::min(faces[i], faces[j]), std::max(faces[i], faces[j]), a, b});
         }
     }
   });
@@ -75,14 +78,11 @@ std::vector<uint64_t> plan_face_flips(const MeshView& m, uint64_t& unresolved, u
     const bool ff = flipped.contains(f);
     for (int k = 0; k < 3; ++k) {
       const uint32_t a = t[k], b = t[(k + 1) % 3];
-      const auto fa = m.faces_of(a), fb = m.faces_of(b);
-      uint32_t other = UINT32_MAX, count = 0;
-      for (uint32_t g : fa)
-        if (g != f && std::find(fb.begin(), fb.end(), g) != fb.end()) other = g, ++count;
-      if (count != 1) continue;  // a boundary edge (or one the cleaning left with more faces)
+      uint32_t two[2];
+      if (faces_on_edge(m, a, b, two) != 2) continue;  // a boundary edge (or one with more faces)
+      const uint32_t other = two[0] == f ? two[1] : two[0];
       // f runs a → b when unflipped; consistent when the other runs b → a as it stands.
-      const bool f_ab = !ff;
-      if (runs(m, other, flipped.contains(other), f_ab ? b : a, f_ab ? a : b)) out.push_back(other);
+      if (runs(m, other, flipped.contains(other), ff ? a : b, ff ? b : a)) out.push_back(other);
     }
   };
   // Floods from either face of a misoriented edge, a face at a time in turn, across consistent

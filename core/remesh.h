@@ -129,8 +129,9 @@ struct OutputChecks {
   StripQuality strips;
   bool clusters_connected = false;
   int64_t input_euler_characteristic = 0, output_euler_characteristic = 0;
-  /// Closed input whose output lost or gained handles, or had holes opened by the last-resort
-  /// cleanup: the budget is too coarse for a feature. Reported, never silent.
+  /// Faces deleted by the last-resort cleanup (any input: each deletion opens a hole the input
+  /// has not), or a closed input whose output lost or gained handles: the budget is too coarse
+  /// for a feature. Reported, never silent (a failed check).
   bool topology_changed = false;
   /// Each input component with clusters is one output component, same genus, no more loops.
   ComponentCheck components;

@@ -251,6 +251,8 @@ nlohmann::json guarantee_checks(const PipelineResult& r, uint32_t requested, boo
   j["manifold_ok"] = manifold_ok;
   j["closed_ok"] = closed_ok;
   j["topology_changed"] = rm.checks.topology_changed;
+  j["faces_deleted_around_defects"] = rm.placement.defects_removed.faces_removed;
+  j["vertices_deleted_around_defects"] = rm.placement.defects_removed.vertices_removed;
   const bool components_ok = rm.checks.components.ok();
   j["components_ok"] = components_ok;
   j["input_components_with_clusters"] = rm.checks.components.input_components;
@@ -284,7 +286,13 @@ std::string failed_checks(const nlohmann::json& checks) {
   if (!checks.value("genus_preserved", true) || !checks.value("euler_characteristic_preserved", true))
     add("Euler characteristic " + std::to_string(checks.value("output_euler_characteristic", 0)) + ", the input has " +
         std::to_string(checks.value("input_euler_characteristic", 0)));
-  if (checks.value("topology_changed", false)) add("topology changed (faces deleted around defects)");
+  if (checks.value("topology_changed", false)) {
+    const uint64_t faces = checks.value("faces_deleted_around_defects", uint64_t(0));
+    add(faces > 0 ? "topology changed (" + std::to_string(faces) + " faces and " +
+                        std::to_string(checks.value("vertices_deleted_around_defects", uint64_t(0))) +
+                        " vertices deleted around defects the repair did not mend)"
+                  : "topology changed (handles lost or gained)");
+  }
   if (checks.value("defect_vertices_after_repair", 0) > 0)
     add(std::to_string(checks.value("defect_vertices_after_repair", 0)) + " vertices still on defects");
   if (!checks.value("holes_ok", true))

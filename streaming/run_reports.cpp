@@ -100,6 +100,7 @@ nlohmann::json cleaning_json(const StoreBuildReport& b) {
           {"vertex_copies", c.vertex_copies},
           {"unpaired_faces_dropped", c.unpaired_faces_dropped},
           {"faces_flipped", c.faces_flipped},
+          {"misoriented_edges_cut", c.misoriented_edges_cut},
           {"misoriented_edges_left", c.misoriented_edges_left},
           {"rounds", c.rounds},
           {"sheets_made", c.sheets_made(in)},

@@ -270,14 +270,39 @@ MeshBuffers moebius_strip(uint32_t around, uint32_t across) {
   return m;
 }
 
-TEST(StoreClean, ANonOrientableSurfaceKeepsItsMisorientedEdgesAndSaysSo) {
+TEST(StoreClean, ANonOrientableSurfaceIsCutOpenAlongItsMisorientedEdges) {
+  // No flip mends a Möbius strip; cut across along the edges left, it is a band with one
+  // boundary loop (the strip's own, now running along both sides of the cut), orientable.
+  const MeshBuffers strip = moebius_strip(60, 5);
   StoreBuildReport r;
-  MeshStore store = build(moebius_strip(60, 5), r);
+  MeshStore store = build(strip, r);
   EXPECT_GT(r.screen.misoriented_edges, 0u);
-  EXPECT_EQ(r.cleaning.faces_flipped, 0u);  // no flip mends a Möbius strip: none is made
-  EXPECT_EQ(r.cleaning.misoriented_edges_left, 4u);
-  EXPECT_FALSE(r.cleaning.rebuilt);
-  EXPECT_EQ(store.view().face_count(), 60u * 4 * 2);
+  EXPECT_EQ(r.cleaning.faces_flipped, 0u);
+  EXPECT_EQ(r.cleaning.misoriented_edges_cut, 4u);
+  EXPECT_EQ(r.cleaning.misoriented_edges_left, 0u);
+  EXPECT_EQ(r.cleaning.vertex_copies, 5u);  // each vertex of the cut, once
+  EXPECT_TRUE(r.cleaning.rebuilt);
+  const TopologyStats s = compute_topology_stats(store.view());
+  expect_manifold(s);
+  EXPECT_TRUE(s.consistently_oriented);
+  EXPECT_EQ(s.boundary_loops, 1u);
+  EXPECT_EQ(s.components, 1u);
+  EXPECT_EQ(s.faces, strip.face_count());
+  expect_original_positions(store, strip);
+  // It remeshes: before the cut, 40 repair rounds, then faces deleted and exit 4.
+  if (!test::cli_available()) GTEST_SKIP() << "no CLI";
+  const fs::path dir = test::temp_dir("store_clean_moebius");
+  const std::string in = (dir / "moebius.ply").string(), out = (dir / "out.ply").string();
+  const std::string report = (dir / "r.json").string();
+  write_mesh(in, strip.view());
+  const test::CliResult run = test::run_cli({"remesh", in, "-o", out, "-n", "100", "--report", report, "-q"});
+  ASSERT_EQ(run.exit_code, 0) << run.describe();
+  const nlohmann::json j = nlohmann::json::parse(test::slurp(report));
+  EXPECT_TRUE(j["checks"]["all_ok"].get<bool>()) << j["checks"].dump();
+  EXPECT_EQ(j["cleaning"]["misoriented_edges_cut"].get<uint64_t>(), 4u);
+  EXPECT_LE(j["clustering"]["repair_rounds"].get<uint64_t>(), 10u);
+  EXPECT_EQ(j["clustering"]["defect_faces_removed"].get<uint64_t>(), 0u);
+  fs::remove_all(dir);
 }
 
 TEST(StoreClean, FinBecomesAPieceOfItsOwn) {

@@ -62,19 +62,16 @@ void print_cleaning(std::FILE* out, const StoreBuildReport& b, const char* inden
   const TopologyStats& m = c.cleaned;
   auto u = [](uint64_t x) { return (unsigned long long)x; };
   if (!c.rebuilt) {
-    if (c.misoriented_edges_left > 0)  // nothing to cut, and no flip mends them
-      std::fprintf(out, "%scleaning            none possible: %llu misoriented edges left (not orientable there)\n",
-                   indent, u(c.misoriented_edges_left));
-    else
-      std::fprintf(out, "%scleaning            none needed\n", indent);
+    std::fprintf(out, "%scleaning            none needed\n", indent);
     return;
   }
   std::fprintf(out, "%scleaning            %llu duplicate (%llu in double layers) + %llu degenerate faces dropped, %llu "
                "non-manifold edges cut (%llu faces left unpaired), %llu vertices split into %llu copies, %llu unpaired "
-               "faces dropped, %llu faces flipped (%llu misoriented edges left) (%u rounds)\n",
+               "faces dropped, %llu faces flipped, %llu misoriented edges cut open (%llu left) (%u rounds)\n",
                indent, u(c.duplicate_faces_dropped), u(c.double_layer_faces_dropped), u(c.degenerate_faces_dropped),
                u(c.nonmanifold_edges_cut), u(c.unpaired_edge_faces), u(c.vertices_split), u(c.vertex_copies),
-               u(c.unpaired_faces_dropped), u(c.faces_flipped), u(c.misoriented_edges_left), c.rounds);
+               u(c.unpaired_faces_dropped), u(c.faces_flipped), u(c.misoriented_edges_cut), u(c.misoriented_edges_left),
+               c.rounds);
   std::fprintf(out, "%scleaned             %llu vertices, %llu faces, %llu boundary loops, %llu components (%lld sheets "
                "made), non-manifold e/v %llu / %llu\n",
                indent, u(m.vertices), u(m.faces), u(m.boundary_loops), u(m.components),

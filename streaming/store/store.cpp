@@ -339,6 +339,22 @@ MeshStore clean_store_topology(MeshStore&& built, const StoreBuildOptions& optio
     report.cleaning.faces_flipped = plan.flipped_faces.size();
     if (!plan.flipped_faces.empty()) rebuild(plan);
   }
+  // Pass 5: a surface no flip orients (a Möbius band; the fold of a crude decimation) is cut
+  // open along the misoriented edges left, as along a non-manifold edge: faces that run an edge
+  // the same way are not one fan, so each side gets its own copies of the seam's vertices and
+  // the seam becomes boundary. Left, such an edge is a dual edge used twice in one direction
+  // (Möbius band → 300: 40 repair rounds, then faces deleted, exit 4). An edge alone inside a
+  // surface stays: its ends' fans join round it.
+  if (report.cleaning.misoriented_edges_left > 0) {
+    uint64_t edges = 0;
+    const std::vector<uint32_t> seam = misoriented_edge_vertices(current.view(), edges);
+    if (!seam.empty()) {
+      if (progress) progress({"orient"});
+      rebuild(plan_topology_cleaning(current.view(), report.cleaning, false, seam));
+      misoriented_edge_vertices(current.view(), report.cleaning.misoriented_edges_left);
+      report.cleaning.misoriented_edges_cut = edges - std::min(edges, report.cleaning.misoriented_edges_left);
+    }
+  }
   report.cleaning.seconds = seconds();
   if (!report.cleaning.rebuilt) return current;
   current.impl_->cleaning = cleaning_record(report);

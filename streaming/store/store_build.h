@@ -72,7 +72,8 @@ struct TopologyCleaning {
   uint64_t vertex_copies = 0;             ///< vertices added, one per fan beyond the first
   uint64_t unpaired_faces_dropped = 0;    ///< later rounds: unpaired faces of cuts that did not come apart
   uint64_t faces_flipped = 0;             ///< faces turned round so that the surface is consistently oriented
-  uint64_t misoriented_edges_left = 0;    ///< misoriented edges no flip could mend (a surface not orientable there)
+  uint64_t misoriented_edges_cut = 0;     ///< misoriented edges no flip mends (not orientable there), cut open
+  uint64_t misoriented_edges_left = 0;    ///< misoriented edges neither mended nor cut (one alone inside a surface)
   uint32_t rounds = 0;                    ///< rebuilds (a second or third only when a cut did not come apart)
   double seconds = 0;                     ///< checks, plan, rebuild
   /// The figures of the store as cleaned (those of the input when nothing was rebuilt; unset

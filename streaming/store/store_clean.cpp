@@ -49,6 +49,7 @@ struct Faces {
   const MeshView& m;
   double zero;
   bool drop_unpaired = false;  // later rounds: faces a cut left unpaired go (see plan_topology_cleaning)
+  std::span<const uint32_t> seam;  // vertices looked at as if flagged (misoriented edges to cut)
   const uint32_t* tri(uint64_t f) const { return &m.triangles[3 * f]; }
   // A repeated index always; zero area only at a non-manifold vertex, where its angle about an
   // edge would mean nothing. Elsewhere a zero-area face is harmless (it weighs nothing) and
@@ -341,7 +342,7 @@ void plan_range(const Faces& fs, VertexRange r, FanScratch& s, RangePlan& p) {
   const MeshView& m = fs.m;
   for (uint32_t v = r.begin; v != r.end; ++v) {
     const std::span<const uint32_t> fan = m.faces_of(v);
-    bool look = (m.vertex_flags[v] & kVertexNonManifold) != 0;
+    bool look = (m.vertex_flags[v] & kVertexNonManifold) != 0 || std::binary_search(fs.seam.begin(), fs.seam.end(), v);
     s.faces.clear();
     for (size_t i = 0; i < fan.size(); ++i) {
       const uint32_t f = fan[i];
@@ -392,7 +393,8 @@ bool needs_topology_cleaning(const TopologyStats& s, const MeshView& mesh) {
       [](bool a, bool b) { return a || b; });
 }
 
-CleaningPlan plan_topology_cleaning(const MeshView& mesh, TopologyCleaning& counts, bool drop_unpaired) {
+CleaningPlan plan_topology_cleaning(const MeshView& mesh, TopologyCleaning& counts, bool drop_unpaired,
+                                    std::span<const uint32_t> seam) {
   CleaningPlan plan;
   plan.drop_unpaired = drop_unpaired;
   plan.vertices = mesh.vertex_count();
@@ -401,7 +403,7 @@ CleaningPlan plan_topology_cleaning(const MeshView& mesh, TopologyCleaning& coun
   topology::Box box;
   for (const Chunk& c : mesh.chunks) box.add(c.bbox_min), box.add(c.bbox_max);
   plan.zero_area = topology::zero_area(box);
-  const Faces fs{mesh, plan.zero_area, drop_unpaired};
+  const Faces fs{mesh, plan.zero_area, drop_unpaired, seam};
   const std::vector<VertexRange> ranges = chunk_ranges(mesh.chunks);
   std::vector<RangePlan> parts(ranges.size());
   tbb::enumerable_thread_specific<FanScratch> scratch;
@@ -507,7 +509,7 @@ template <typename Report>
 auto record_fields(Report& r) {
   auto& in = r.input_topology;
   auto& c = r.cleaning;
-  return std::array<std::pair<const char*, decltype(&in.vertices)>, 22>{{
+  return std::array<std::pair<const char*, decltype(&in.vertices)>, 23>{{
       {"input_vertices", &in.vertices},
       {"input_faces", &in.faces},
       {"input_edges", &in.edges},
@@ -528,6 +530,7 @@ auto record_fields(Report& r) {
       {"vertex_copies", &c.vertex_copies},
       {"unpaired_faces_dropped", &c.unpaired_faces_dropped},
       {"faces_flipped", &c.faces_flipped},
+      {"misoriented_edges_cut", &c.misoriented_edges_cut},
       {"misoriented_edges_left", &c.misoriented_edges_left},
       {"input_closed_manifold", nullptr},  // the rest: not uint64_t, handled by name
   }};

@@ -77,7 +77,13 @@ std::vector<uint64_t> plan_face_flips(const MeshView& mesh, uint64_t& unresolved
 /// non-manifold edge). Chunk range by chunk range, TBB-parallel; the plan depends on neither the thread
 /// count nor the memory limit. O(V + F) time (fans of flagged vertices sorted); memory O(copies +
 /// moved corners) besides per-thread fan scratch: nothing O(V) or O(F). Thread-safe (pure).
-CleaningPlan plan_topology_cleaning(const MeshView& mesh, TopologyCleaning& counts, bool drop_unpaired = false);
+CleaningPlan plan_topology_cleaning(const MeshView& mesh, TopologyCleaning& counts, bool drop_unpaired = false,
+                                    std::span<const uint32_t> seam = {});
+
+/// The ends of the misoriented edges of the manifold store `mesh` (two faces running the edge
+/// the same way), ascending, unique: the `seam` along which plan_topology_cleaning cuts a
+/// surface that no flip orients. Their count in `edges`. O(V + Σ degree²), TBB-parallel.
+std::vector<uint32_t> misoriented_edge_vertices(const MeshView& mesh, uint64_t& edges);
 
 /// Streams the cleaned soup of `store` into `sink` as a reader would: the store's vertices and
 /// attributes in store order, then the copies; then its faces in store order, dropped ones left

@@ -67,6 +67,16 @@ std::vector<Misoriented> misoriented_edges(const MeshView& m) {
 
 }  // namespace
 
+std::vector<uint32_t> misoriented_edge_vertices(const MeshView& m, uint64_t& edges) {
+  const std::vector<Misoriented> found = misoriented_edges(m);
+  edges = found.size();
+  std::vector<uint32_t> ends;
+  for (const Misoriented& e : found) ends.push_back(e.a), ends.push_back(e.b);
+  std::sort(ends.begin(), ends.end());
+  ends.erase(std::unique(ends.begin(), ends.end()), ends.end());
+  return ends;
+}
+
 std::vector<uint64_t> plan_face_flips(const MeshView& m, uint64_t& unresolved, uint64_t max_region_faces) {
   unresolved = 0;
   const std::vector<Misoriented> edges = misoriented_edges(m);

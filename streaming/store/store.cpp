@@ -348,9 +348,13 @@ MeshStore clean_store_topology(MeshStore&& built, const StoreBuildOptions& optio
   if (report.cleaning.misoriented_edges_left > 0) {
     uint64_t edges = 0;
     const std::vector<uint32_t> seam = misoriented_edge_vertices(current.view(), edges);
-    if (!seam.empty()) {
+    TopologyCleaning counts;  // vertices split along the seam (nothing else is left to clean)
+    const CleaningPlan plan = plan_topology_cleaning(current.view(), counts, false, seam);
+    if (!plan.copy_source.empty()) {  // else: lone edges only, nothing to rebuild
       if (progress) progress({"orient"});
-      rebuild(plan_topology_cleaning(current.view(), report.cleaning, false, seam));
+      report.cleaning.vertices_split += counts.vertices_split;
+      report.cleaning.vertex_copies += counts.vertex_copies;
+      rebuild(plan);
       misoriented_edge_vertices(current.view(), report.cleaning.misoriented_edges_left);
       report.cleaning.misoriented_edges_cut = edges - std::min(edges, report.cleaning.misoriented_edges_left);
     }

@@ -1,8 +1,8 @@
 // The store build's topology cleaning (streaming/store/store_clean.h) on generated defective inputs
 // with known answers: duplicated faces, a fin, two closed surfaces sharing an edge or a vertex,
-// a book of three sheets. Each is built (counts of what the cleaning did, a manifold result) and
-// remeshed through the CLI (exit 0, manifold output, holes ≤ the cleaned input's, the pieces
-// expected). Also: a clean input's store is the one built without cleaning, byte for byte, and a
+// a book of three sheets, flipped faces, a Möbius strip (cut open). Each is built (counts of
+// what the cleaning did, a manifold result) and remeshed through the CLI (exit 0, manifold
+// output, holes ≤ the cleaned input's, the pieces expected). Also: a clean input's store is the one built without cleaning, byte for byte, and a
 // cleaned store does not depend on the memory limit or the thread count.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -18,8 +18,8 @@
 #include <nlohmann/json.hpp>
 
 #include "streamcvd/core/measure/shapes.h"
-#include "streamcvd/core/remesh.h"
 #include "streamcvd/core/measure/store_stats.h"
+#include "streamcvd/core/remesh.h"
 #include "streamcvd/streaming/io/mesh_io.h"
 #include "streamcvd/streaming/store/store.h"
 #include "streamcvd/streaming/store/store_build.h"

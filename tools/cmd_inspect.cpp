@@ -62,7 +62,11 @@ void print_cleaning(std::FILE* out, const StoreBuildReport& b, const char* inden
   const TopologyStats& m = c.cleaned;
   auto u = [](uint64_t x) { return (unsigned long long)x; };
   if (!c.rebuilt) {
-    std::fprintf(out, "%scleaning            none needed\n", indent);
+    if (c.misoriented_edges_left > 0)  // lone edges inside a surface: no flip or cut mends them
+      std::fprintf(out, "%scleaning            none possible: %llu misoriented edges left (not orientable there)\n",
+                   indent, u(c.misoriented_edges_left));
+    else
+      std::fprintf(out, "%scleaning            none needed\n", indent);
     return;
   }
   std::fprintf(out, "%scleaning            %llu duplicate (%llu in double layers) + %llu degenerate faces dropped, %llu "

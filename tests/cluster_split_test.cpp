@@ -1,12 +1,13 @@
 // Tests of the repair's edits (core/dual/cluster_repair.h): a defective cluster is cut between
 // the two arcs along which it meets a neighbour, a band is cut across, and a cluster between
 // two others (a lens on their frontier) is dissolved rather than split, and a cluster in
-// pieces is cut along its pieces.
+// pieces is cut along its pieces; parts_are_discs tells a clean cut from one that is not.
 #include "streamcvd/core/dual/cluster_repair.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <set>
 #include <vector>
@@ -85,6 +86,34 @@ TEST(ClusterSplit, ACutBetweenTheTwoArcsWhereAClusterMeetsItsNeighbour) {
     });
     EXPECT_LE(on_edge, 2) << "part " << part;
   }
+}
+
+TEST(ClusterSplit, PartsAreDiscsTellsACleanCutFromAnIslandOrABandAcross) {
+  // Grid 12 × 12 in 3 × 3 blocks of 4 × 4 vertices, clusters 0–8; the centre one (4) touches
+  // no boundary. It is cut three ways into 4 and 9: the compensating splits of the repair keep
+  // a cut only when both parts are discs.
+  const int nx = 12, ny = 12;
+  MeshStore store = MeshStore::build(make_grid(nx, ny).view());
+  const MeshView view = store.view();
+  auto cut = [&](auto&& in_new_part) {
+    return grid_labels(view, nx, ny, [&](long i, long j) {
+      const int32_t block = int32_t(j / 4 * 3 + i / 4);
+      return block == 4 && in_new_part(i, j) ? 9 : block;
+    });
+  };
+  dual::FanScratch scratch;
+  const std::array<int32_t, 2> parts = {4, 9};
+  auto discs = [&](const std::vector<int32_t>& labels) {
+    std::vector<uint32_t> members = members_of(labels, 4), more = members_of(labels, 9);
+    members.insert(members.end(), more.begin(), more.end());
+    std::sort(members.begin(), members.end());
+    return detail::parts_are_discs(view, labels, members, parts, scratch);
+  };
+  EXPECT_TRUE(discs(cut([](long i, long) { return i >= 6; }))) << "halves side by side";
+  EXPECT_FALSE(discs(cut([](long i, long j) { return i >= 5 && i <= 6 && j >= 5 && j <= 6; })))
+      << "an island: no dual face, and 4 rings it";
+  EXPECT_FALSE(discs(cut([](long i, long) { return i == 5 || i == 6; }))) << "a band across: 4 in two pieces";
+  EXPECT_FALSE(discs(cut([](long, long) { return false; }))) << "an empty part has no fan";
 }
 
 TEST(ClusterSplit, AShortArcBesideALongOneGetsAFairPartNotASliver) {

@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <numeric>
 
 #include "streamcvd/core/dual/dual_topology.h"
@@ -347,6 +348,14 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
       if (labels_.index().size(c) < 2) continue;
       const int32_t id = free_ids.back();
       if (split(c, {&id, 1}, false) == 0) continue;
+      // A farthest-point cut of a cluster on a thin or folded patch can leave a half that
+      // rings the other or meets a neighbour twice: a new defect far from the others, found
+      // a round later and repaired with its own compensations (crude dragon ×10 → 100,000:
+      // 3 of the last 6 rounds). Such a cut is undone and the next heaviest cluster tried.
+      if (!touches_boundary_[c] && !parts_are_discs(mesh_, labels_.labels(), members_of(c), std::array{c, id}, fan_scratch_)) {
+        for (uint32_t v : members_of(c)) labels_.set(v, c);
+        continue;
+      }
       free_ids.pop_back();
       touched.push_back(c);
       touched.push_back(id);

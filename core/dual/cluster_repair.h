@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/dual/dual_topology.h"
 #include "streamcvd/core/dual/repair_state.h"
 #include "streamcvd/core/mesh/mesh_view.h"
 
@@ -47,6 +48,14 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
 /// O(Σ degree · log) over the members.
 bool frontier_in_one_part(const MeshView& mesh, std::span<const int32_t> labels, std::span<const uint32_t> members,
                           SplitScratch& scratch);
+
+/// True when each cluster of `parts` has dual faces (corners with three distinct labels) around
+/// the vertices `members`, and they form one fan that dual::fan_defective accepts (no edge in
+/// more than two faces or twice one way, no two faces on one vertex set). `members` must hold
+/// every vertex of the parts (e.g. a cluster just split into them), which must not touch the
+/// boundary (strip faces are not built here). O(faces of the members · log); thread-safe.
+bool parts_are_discs(const MeshView& mesh, std::span<const int32_t> labels, std::span<const uint32_t> members,
+                     std::span<const int32_t> parts, dual::FanScratch& scratch);
 
 /// One repair round at a time with state that persists across rounds: per-cluster weights and
 /// boundary contact (refreshed for the clusters whose members changed), and K-sized flag arrays
@@ -89,6 +98,7 @@ class ClusterRepair {
   std::unordered_map<int32_t, std::vector<uint32_t>> round_members_;
   std::unordered_map<int32_t, std::vector<int32_t>> round_neighbours_;  // merge candidates' lists
   SplitScratch scratch_;
+  dual::FanScratch fan_scratch_;
 };
 
 }  // namespace streamcvd::detail

@@ -370,6 +370,28 @@ uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::spa
   return uint32_t(seeds.size() - 1);
 }
 
+bool parts_are_discs(const MeshView& mesh, std::span<const int32_t> labels, std::span<const uint32_t> members,
+                     std::span<const int32_t> parts, dual::FanScratch& scratch) {
+  auto in_parts = [&](uint32_t x) { return std::find(parts.begin(), parts.end(), int32_t(x)) != parts.end(); };
+  std::vector<dual::Face> faces;
+  for (uint32_t v : members)
+    for (uint32_t f : mesh.faces_of(v)) {
+      dual::Face face;
+      if (dual::face_triple(&mesh.triangles[3 * size_t(f)], labels, face) &&
+          (in_parts(face[0]) || in_parts(face[1]) || in_parts(face[2])))
+        faces.push_back(face);
+    }
+  dual::sort_unique(faces);
+  std::vector<dual::Face> fan;
+  for (const int32_t x : parts) {
+    fan.clear();
+    for (const dual::Face& f : faces)
+      if (std::find(f.begin(), f.end(), uint32_t(x)) != f.end()) fan.push_back(f);
+    if (fan.empty() || dual::fan_defective(uint32_t(x), fan, scratch)) return false;
+  }
+  return true;
+}
+
 bool frontier_in_one_part(const MeshView& mesh, std::span<const int32_t> labels, std::span<const uint32_t> members,
                           SplitScratch& scratch) {
   return two_largest_parts(mesh, labels, members, frontier_members(frontier_contacts(mesh, labels, members)), scratch)

@@ -134,6 +134,18 @@ void ClusterRepair::merge_tips(std::span<const Ring> rings, std::vector<int32_t>
   }
 }
 
+std::vector<int32_t> ClusterRepair::compensate(int64_t count_change, std::span<const int32_t> keep_off,
+                                               RepairRoundStats& stats) {
+  round_members_.clear();
+  std::vector<int32_t> around;
+  for (int32_t c : keep_off) {
+    near_.insert(c);
+    neighbour_clusters(c, around);
+    for (int32_t n : around) near_.insert(n);
+  }
+  return round({}, {}, count_change, true, stats);
+}
+
 std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_clusters, std::span<const Ring> rings,
                                           int64_t count_change, bool keep_strips, RepairRoundStats& stats) {
   {

@@ -76,6 +76,11 @@ class ClusterRepair {
   std::vector<int32_t> round(std::span<const int32_t> defect_clusters, std::span<const Ring> rings,
                              int64_t count_change, bool keep_strips, RepairRoundStats& stats);
 
+  /// Changes the number of non-empty clusters by `count_change` with merges or splits off the
+  /// boundary, away from `keep_off` (sorted) and its neighbours: a round's second compensation,
+  /// once its splits have changed the strips. Returns the clusters changed, as round.
+  std::vector<int32_t> compensate(int64_t count_change, std::span<const int32_t> keep_off, RepairRoundStats& stats);
+
  private:
   void refresh(std::span<const int32_t> clusters);
   std::span<const uint32_t> members_of(int32_t c);

@@ -59,6 +59,12 @@ std::vector<int32_t> DefectTracker::check_changes(std::span<const int32_t> label
   return check(labels, false);
 }
 
+uint32_t DefectTracker::strip_vertices_now(std::span<const int32_t> labels) const {
+  uint32_t strip_vertices = 0;
+  if (strips_) boundary_strip_faces(mesh_, loops_, labels, K_, members_.sizes(), options_, strip_vertices);
+  return strip_vertices;
+}
+
 std::vector<int32_t> DefectTracker::check(std::span<const int32_t> labels, bool all) {
   std::span<const uint32_t> size = members_.sizes();
   // Dual faces with a corner in the set: every face when all clusters are in it.

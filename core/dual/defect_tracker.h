@@ -43,6 +43,9 @@ class DefectTracker {
   uint64_t unjoined_pairs() const { return unjoined_pairs_; }
   /// Strip vertices the dual of the last checked labels adds (0 without strips).
   uint32_t strip_vertices() const { return strip_vertices_; }
+  /// Strip vertices the dual of `labels` adds now (0 without strips), without a check: lets a
+  /// repair round set the count after its splits changed the strips. O(boundary size).
+  uint32_t strip_vertices_now(std::span<const int32_t> labels) const;
   /// The rings among the clusters on defects at the last check, sorted by cluster.
   const std::vector<Ring>& rings() const { return rings_; }
   /// Clusters that keep a hole below the output resolution open at the last check (each meets

@@ -364,7 +364,8 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
       // rings the other or meets a neighbour twice: a new defect far from the others, found
       // a round later and repaired with its own compensations (crude dragon ×10 → 100,000:
       // 3 of the last 6 rounds). Such a cut is undone and the next heaviest cluster tried.
-      if (!touches_boundary_[c] && !parts_are_discs(mesh_, labels_.labels(), members_of(c), std::array{c, id}, fan_scratch_)) {
+      if (!touches_boundary_[c] &&
+          !parts_are_discs(mesh_, labels_.labels(), members_of(c), std::array{c, id}, fan_scratch_)) {
         for (uint32_t v : members_of(c)) labels_.set(v, c);
         continue;
       }

@@ -125,9 +125,10 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     }
     detail::RepairRoundStats stats;
     // The count is set right in every round, with merges and splits away from the defects and
-    // from every cluster an earlier round repaired (ClusterRepair::round): the last defect
-    // round then needs no count round after it. (Merges next to a defect's splits made the two
-    // chase each other: dragon 36 rounds instead of 12; the repaired clusters are kept out.)
+    // from every cluster an earlier round repaired (ClusterRepair::round), and again after the
+    // round's cuts (below): the last defect round then needs no count round after it. (Merges
+    // next to a defect's splits made the two chase each other: dragon 36 rounds instead of 12;
+    // the repaired clusters are kept out.)
     const int64_t asked = change;
     std::vector<int32_t> round_defects = bad;
     for (int32_t c : holes) ++hole_splits[c], round_defects.push_back(c);

@@ -1,7 +1,8 @@
 // Tests of the repair's edits (core/dual/cluster_repair.h): a defective cluster is cut between
 // the two arcs along which it meets a neighbour, a band is cut across, and a cluster between
 // two others (a lens on their frontier) is dissolved rather than split, and a cluster in
-// pieces is cut along its pieces; parts_are_discs tells a clean cut from one that is not.
+// pieces is cut along its pieces, a cluster meeting a hole twice is cut between its stretches;
+// parts_are_discs tells a clean cut from one that is not.
 #include "streamcvd/core/dual/cluster_repair.h"
 
 #include <gtest/gtest.h>
@@ -136,6 +137,58 @@ TEST(ClusterSplit, AShortArcBesideALongOneGetsAFairPartNotASliver) {
   EXPECT_TRUE(clusters_connected(view, labels, 4));
   const size_t part = size_t(std::count(labels.begin(), labels.end(), *short_arc.begin()));
   EXPECT_GE(4 * 2 * part, a.size()) << "the short arc's part has " << part << " of " << a.size() << " members";
+}
+
+TEST(ClusterSplit, AClusterMeetingAHoleTwiceIsCutBetweenItsTwoStretches) {
+  // Grid 21 × 41 with a hole of 2 × 1 cells near the top (loop of 6 vertices: columns 9–11,
+  // rows 35–36). Cluster 0 holds the loop's left and right sides and everything below, 1 its
+  // top middle vertex and all above, 2 its bottom middle one: 0 meets the hole in two
+  // stretches, so the ring 0, 1, 0, 2 cannot close. A farthest-point cut parts 0's top from its
+  // bottom, both stretches in one part; cut from the stretches, each part holds one and the
+  // ring is four distinct clusters.
+  const int nx = 21, ny = 41;
+  MeshBuffers grid = make_grid(nx, ny);
+  std::vector<uint32_t> kept;
+  for (size_t f = 0; f < grid.face_count(); ++f) {
+    double x = 0, y = 0;
+    for (int k = 0; k < 3; ++k) {
+      x += grid.positions[3 * size_t(grid.triangles[3 * f + k])] * (nx - 1) / 3.0;
+      y += grid.positions[3 * size_t(grid.triangles[3 * f + k]) + 1] * (ny - 1) / 3.0;
+    }
+    if (!(x > 9 && x < 11 && y > 35 && y < 36)) kept.insert(kept.end(), &grid.triangles[3 * f], &grid.triangles[3 * f + 3]);
+  }
+  grid.triangles = kept;
+  MeshStore store = MeshStore::build(grid.view());
+  const MeshView view = store.view();
+  const std::vector<int32_t> before = grid_labels(view, nx, ny, [](long i, long j) {
+    if (j >= 37 || (i == 10 && j == 36)) return 1;
+    if (i == 10 && (j == 35 || j == 34)) return 2;
+    return 0;
+  });
+  ASSERT_TRUE(clusters_connected(view, before, 3));
+  const BoundaryLoops loops = find_boundary_loops(view);
+  ASSERT_EQ(loops.offsets.size(), 3u) << "the outer loop and the hole";
+  const uint32_t hole = loops.offsets[1] - loops.offsets[0] == 6 ? 0 : 1;
+  const std::span<const uint32_t> loop(loops.vertices.data() + loops.offsets[hole], 6);
+  auto at = [&](const std::vector<int32_t>& labels, long i, long j) {
+    for (uint32_t v : loop)
+      if (std::lround(view.positions[3 * v] * (nx - 1)) == i && std::lround(view.positions[3 * v + 1] * (ny - 1)) == j)
+        return labels[v];
+    ADD_FAILURE() << "(" << i << ", " << j << ") is not on the hole";
+    return -1;
+  };
+  const int32_t new_label = 3;
+  for (const bool with_loop : {false, true}) {
+    std::vector<int32_t> labels = before;
+    detail::SplitScratch scratch;
+    const std::span<const uint32_t> hole_loop = with_loop ? loop : std::span<const uint32_t>();
+    ASSERT_EQ(detail::split_cluster(view, labels, members_of(before, 0), {&new_label, 1}, scratch, false, nullptr, hole_loop), 1u);
+    EXPECT_EQ(at(labels, 9, 35), at(labels, 9, 36)) << "the left stretch stays in one part";
+    EXPECT_EQ(at(labels, 11, 35), at(labels, 11, 36)) << "the right stretch stays in one part";
+    EXPECT_EQ(at(labels, 9, 35) != at(labels, 11, 35), with_loop) << (with_loop ? "each part holds one stretch"
+                                                                                 : "a farthest-point cut keeps both");
+    EXPECT_TRUE(clusters_connected(view, labels, 4));
+  }
 }
 
 TEST(ClusterSplit, ABandRoundATubeIsCutAcrossNotAlongIt) {

@@ -158,9 +158,12 @@ TEST(HoleClosing, AClusterMeetingASlitTwiceKeepsItOpenAndIsNamed) {
   auto open_clusters = [&](uint32_t& strip_vertices) {
     std::vector<uint32_t> sizes(K, 0);
     for (int32_t c : labels) ++sizes[c];
-    std::vector<int32_t> open;
+    std::vector<OpenHole> open;
     boundary_strip_faces(m, find_boundary_loops(m), labels, K, sizes, slits, strip_vertices, &open);
-    return open;
+    dual::sort_unique(open);
+    std::vector<int32_t> clusters;
+    for (const OpenHole& h : open) clusters.push_back(h.cluster);
+    return clusters;
   };
   uint32_t closed_strips = 0, open_strips = 0;
   EXPECT_TRUE(open_clusters(closed_strips).empty());

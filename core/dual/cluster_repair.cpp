@@ -32,8 +32,8 @@ size_t common_count(std::span<const int32_t> x, std::span<const int32_t> y) {
 }  // namespace
 
 ClusterRepair::ClusterRepair(const MeshView& mesh, const ItemData& items, LabelEditor& labels, uint32_t K,
-                             std::span<const uint8_t> adjustable)
-    : mesh_(mesh), items_(items), labels_(labels), K_(K), adjustable_(adjustable), weight_(K, 0.0),
+                             std::span<const uint8_t> adjustable, const BoundaryLoops& loops)
+    : mesh_(mesh), loops_(loops), items_(items), labels_(labels), K_(K), adjustable_(adjustable), weight_(K, 0.0),
       touches_boundary_(K, 0), repaired_(K, 0), is_defect_(K), near_(K), used_(K), beside_merge_(K), spared_(K), partner_(K, -1) {
   std::vector<int32_t> all(K);
   std::iota(all.begin(), all.end(), 0);
@@ -143,11 +143,12 @@ std::vector<int32_t> ClusterRepair::compensate(int64_t count_change, std::span<c
     neighbour_clusters(c, around);
     for (int32_t n : around) near_.insert(n);
   }
-  return round({}, {}, count_change, true, stats);
+  return round({}, {}, {}, count_change, true, stats);
 }
 
 std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_clusters, std::span<const Ring> rings,
-                                          int64_t count_change, bool keep_strips, RepairRoundStats& stats) {
+                                          std::span<const OpenHole> open_holes, int64_t count_change, bool keep_strips,
+                                          RepairRoundStats& stats) {
   {
     std::vector<int32_t> stale = labels_.take_stale();
     std::sort(stale.begin(), stale.end());  // ids in store order (see the merge candidates)
@@ -328,9 +329,16 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     round_neighbours_.clear();
     while (!to_split.empty() && ids_needed() + keep_free > free_ids.size()) to_split.pop_back();
   }
+  // The loop of the first hole c keeps open, or nothing.
+  auto hole_loop_of = [&](int32_t c) -> std::span<const uint32_t> {
+    auto it = std::lower_bound(open_holes.begin(), open_holes.end(), OpenHole{c, 0});
+    if (it == open_holes.end() || it->cluster != c) return {};
+    return {loops_.vertices.data() + loops_.offsets[it->loop], loops_.offsets[it->loop + 1] - loops_.offsets[it->loop]};
+  };
   auto split = [&](int32_t c, std::span<const int32_t> ids, bool at_defect) {
     std::span<const uint32_t> members = members_of(c);
-    const uint32_t made = split_cluster(mesh_, labels_.labels(), members, ids, scratch_, at_defect, ring_of(c));
+    const uint32_t made = split_cluster(mesh_, labels_.labels(), members, ids, scratch_, at_defect, ring_of(c),
+                                        at_defect ? hole_loop_of(c) : std::span<const uint32_t>());
     for (uint32_t v : members) labels_.note(v, c);
     return made;
   };

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/dual/dual_mesh.h"
 #include "streamcvd/core/dual/dual_topology.h"
 #include "streamcvd/core/dual/repair_state.h"
 #include "streamcvd/core/mesh/mesh_view.h"
@@ -36,12 +37,14 @@ struct SplitScratch {
 /// its members next to either side of `ring`); a part under a quarter of the mean part size is
 /// regrown with the others, balanced by size. A cluster in pieces (its
 /// members not connected) instead gives new_labels[0] to the piece of the first member its
-/// first piece leaves out: one piece parted per call.
+/// first piece leaves out: one piece parted per call. With a `hole_loop` (the vertices of a
+/// boundary loop the cluster meets in two stretches or more, in loop order) and one new label,
+/// the parts grow from the two longest stretches instead, so that each holds one.
 /// Returns the number of new labels used (0: the cluster could not be split).
-/// O(cluster size · parts · log cluster size); reads only the members and their 1-rings.
+/// O(cluster size · parts · log cluster size + loop size); reads only the members and their 1-rings.
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
                        std::span<const int32_t> new_labels, SplitScratch& scratch, bool at_defect = false,
-                       const Ring* ring = nullptr);
+                       const Ring* ring = nullptr, std::span<const uint32_t> hole_loop = {});
 
 /// True when the members of the cluster `members` (all, ascending) that touch another cluster
 /// form one connected part: a disc-like cluster, not a band round a thin feature.
@@ -65,16 +68,19 @@ class ClusterRepair {
  public:
   /// Weighs every cluster once: O(V) reads, parallel over the clusters.
   ClusterRepair(const MeshView& mesh, const ItemData& items, LabelEditor& labels, uint32_t K,
-                std::span<const uint8_t> adjustable);
+                std::span<const uint8_t> adjustable, const BoundaryLoops& loops);
 
   /// Splits in two and dissolves the clusters of `defect_clusters` (sorted, unique), splits in
   /// three those of them in `rings` (sorted by cluster; DefectTracker::rings), and changes
   /// the number of non-empty clusters by `count_change` with compensating merges or splits (0:
-  /// the count stays). With `keep_strips` those compensations only touch clusters off the
-  /// boundary, so the strip vertices of the dual stay as they are. Returns the clusters changed
+  /// the count stays). A cluster of `open_holes` (sorted; DefectTracker::open_holes) is cut
+  /// between its two longest stretches along the hole's loop. With `keep_strips` those
+  /// compensations only touch clusters off the boundary, so the strip vertices of the dual stay
+  /// as they are. Returns the clusters changed
   /// (sorted, unique). O(vertices of the clusters it reads and their 1-rings) + a few O(K) scans.
   std::vector<int32_t> round(std::span<const int32_t> defect_clusters, std::span<const Ring> rings,
-                             int64_t count_change, bool keep_strips, RepairRoundStats& stats);
+                             std::span<const OpenHole> open_holes, int64_t count_change, bool keep_strips,
+                             RepairRoundStats& stats);
 
   /// Changes the number of non-empty clusters by `count_change` with merges or splits off the
   /// boundary, away from `keep_off` (sorted) and its neighbours: a round's second compensation,
@@ -91,6 +97,7 @@ class ClusterRepair {
                   RepairRoundStats& stats);
 
   const MeshView& mesh_;
+  const BoundaryLoops& loops_;
   const ItemData& items_;
   LabelEditor& labels_;
   const uint32_t K_;

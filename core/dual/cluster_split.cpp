@@ -261,6 +261,29 @@ std::vector<std::vector<uint32_t>> defect_cut_seeds(const MeshView& mesh, std::s
   return paths.size() == 2 ? paths : std::vector<std::vector<uint32_t>>{};
 }
 
+// The vertices of c's two longest stretches along `loop` (runs of consecutive loop vertices
+// labelled c, cyclically), longest first; fewer when c meets the loop in fewer stretches. A cut
+// grown from them leaves one stretch in each part: a hole c met twice then has distinct
+// clusters round it and can close. O(loop size).
+std::vector<std::vector<uint32_t>> two_longest_stretches(std::span<const int32_t> labels, int32_t c,
+                                                         std::span<const uint32_t> loop) {
+  const size_t n = loop.size();
+  size_t start = 0;  // a loop position not labelled c, so that no stretch wraps past the end
+  while (start < n && labels[loop[start]] == c) ++start;
+  if (start == n) return {};
+  std::vector<std::vector<uint32_t>> stretches;
+  for (size_t i = 1; i <= n; ++i) {
+    const uint32_t v = loop[(start + i) % n];
+    if (labels[v] != c) continue;
+    if (labels[loop[(start + i - 1) % n]] != c) stretches.emplace_back();
+    stretches.back().push_back(v);
+  }
+  if (stretches.size() < 2) return {};
+  std::stable_sort(stretches.begin(), stretches.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  stretches.resize(2);
+  return stretches;
+}
+
 // Labels `members` (all of cluster c, ascending) in parts grown from `groups` (disjoint
 // members; group 0 keeps c, group k > 0 takes new_labels[k − 1]), each part connected and
 // holding its group. Each member joins the group nearest in hops; when that leaves a part
@@ -318,11 +341,18 @@ void grow_parts_from_groups(const MeshView& mesh, std::span<int32_t> labels, std
 
 uint32_t split_cluster(const MeshView& mesh, std::span<int32_t> labels, std::span<const uint32_t> members,
                        std::span<const int32_t> new_labels, SplitScratch& scratch, bool at_defect,
-                       const Ring* ring) {
+                       const Ring* ring, std::span<const uint32_t> hole_loop) {
   if (members.size() < 2 || new_labels.empty()) return 0;
   const int32_t c = labels[members[0]];
   std::vector<uint32_t>& queue = scratch.queue;
   auto slot = [&](uint32_t v) { return slot_of(members, v); };
+  if (new_labels.size() == 1 && !hole_loop.empty()) {
+    const std::vector<std::vector<uint32_t>> groups = two_longest_stretches(labels, c, hole_loop);
+    if (groups.size() == 2) {
+      grow_parts_from_groups(mesh, labels, members, groups, new_labels, scratch);
+      return 1;
+    }
+  }
   if (at_defect) {
     // One new label: the arcs or paths of defect_cut_seeds; more (a ring): paths across it.
     const std::vector<std::vector<uint32_t>> groups =

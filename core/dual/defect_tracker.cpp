@@ -88,11 +88,11 @@ std::vector<int32_t> DefectTracker::check(std::span<const int32_t> labels, bool 
     neighbour_pairs = dual::neighbour_pairs_around(mesh_, labels, vertices);
   }
   uint32_t strip_vertices = 0;
-  open_hole_clusters_.clear();
+  open_holes_.clear();
   if (strips_)
     dual::merge_faces(faces,
-                      boundary_strip_faces(mesh_, loops_, labels, K_, size, options_, strip_vertices, &open_hole_clusters_));
-  dual::sort_unique(open_hole_clusters_);
+                      boundary_strip_faces(mesh_, loops_, labels, K_, size, options_, strip_vertices, &open_holes_));
+  dual::sort_unique(open_holes_);
   // Verdicts for the clusters in the set and every strip vertex.
   const std::vector<dual::FanVerdict> verdicts =
       dual::check_fans(faces, [&](uint32_t x) { return x >= K_ || set_.contains(int32_t(x)); });

@@ -48,9 +48,10 @@ class DefectTracker {
   uint32_t strip_vertices_now(std::span<const int32_t> labels) const;
   /// The rings among the clusters on defects at the last check, sorted by cluster.
   const std::vector<Ring>& rings() const { return rings_; }
-  /// Clusters that keep a hole below the output resolution open at the last check (each meets
-  /// it in two stretches: boundary_strip_faces). Not defects: the dual is valid. Sorted, unique.
-  const std::vector<int32_t>& open_hole_clusters() const { return open_hole_clusters_; }
+  /// Clusters that keep a hole below the output resolution open at the last check, with the
+  /// hole's loop (each meets it in two stretches: boundary_strip_faces). Not defects: the dual
+  /// is valid. Sorted, unique.
+  const std::vector<OpenHole>& open_holes() const { return open_holes_; }
 
  private:
   std::vector<int32_t> check(std::span<const int32_t> labels, bool all);
@@ -72,7 +73,7 @@ class DefectTracker {
   uint64_t unjoined_pairs_ = 0;
   uint32_t strip_vertices_ = 0;
   std::vector<Ring> rings_;
-  std::vector<int32_t> open_hole_clusters_;
+  std::vector<OpenHole> open_holes_;
 };
 
 }  // namespace streamcvd::detail

@@ -178,11 +178,11 @@ bool close_hole(const MeshView& mesh, std::span<const uint32_t> loop, std::span<
 // loop, a vertex p at the middle of that boundary edge and the triangles (p, b, a) and
 // (p, p_next, b). Loops meeting fewer than three clusters, and loops below the output
 // resolution (options.close_hole_diameter, close_hole_width), close instead; those that cannot
-// (a cluster met twice round them) list that cluster in `open_hole_clusters` (may be null).
+// (a cluster met twice round them) list that cluster with the loop in `open_holes` (may be null).
 void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
                          std::span<const uint32_t> output_of_cluster, std::span<const uint32_t> cluster_size,
                          const DualMeshOptions& options, DualMesh& dual, std::vector<dual::Face>& faces,
-                         std::vector<int32_t>* open_hole_clusters) {
+                         std::vector<OpenHole>* open_holes) {
   const float* P = mesh.positions.data();
   dual.loops_skipped = loops.skipped;
   std::vector<uint64_t> diagonals;  // of the holes closed so far (close_hole)
@@ -224,11 +224,11 @@ void add_boundary_strips(const MeshView& mesh, const BoundaryLoops& loops, std::
       ++dual.holes_closed;
       continue;
     }
-    if ((narrow || slit) && open_hole_clusters) {  // the clusters met twice keep it open
+    if ((narrow || slit) && open_holes) {  // the clusters met twice keep it open
       std::vector<int32_t> ring = ring_of_changes(loop, changes, labels);
       std::sort(ring.begin(), ring.end());
       for (size_t i = 1; i < ring.size(); ++i)
-        if (ring[i] == ring[i - 1]) open_hole_clusters->push_back(ring[i]);  // the caller dedupes
+        if (ring[i] == ring[i - 1]) open_holes->push_back({ring[i], uint32_t(l)});  // the caller dedupes
     }
     // One strip point per change, except that consecutive changes whose midpoints coincide
     // (coincident input vertices) share one point, so no strip triangle is flat; with a strip
@@ -346,7 +346,7 @@ double typical_dual_edge(double area, uint32_t clusters) {
 std::vector<dual::Face> boundary_strip_faces(const MeshView& mesh, const BoundaryLoops& loops, std::span<const int32_t> labels,
                                          uint32_t cluster_count, std::span<const uint32_t> cluster_size,
                                          const DualMeshOptions& options, uint32_t& strip_vertices,
-                                         std::vector<int32_t>* open_hole_clusters) {
+                                         std::vector<OpenHole>* open_holes) {
   // The strip code reads chord ends back from the output positions: give it a scratch dual
   // whose first cluster_count vertices stand for the clusters (identity numbering).
   DualMesh scratch;
@@ -356,7 +356,7 @@ std::vector<dual::Face> boundary_strip_faces(const MeshView& mesh, const Boundar
   std::vector<uint32_t> identity(cluster_count);
   std::iota(identity.begin(), identity.end(), 0u);
   std::vector<dual::Face> faces;
-  add_boundary_strips(mesh, loops, labels, identity, cluster_size, options, scratch, faces, open_hole_clusters);
+  add_boundary_strips(mesh, loops, labels, identity, cluster_size, options, scratch, faces, open_holes);
   strip_vertices = scratch.mesh.vertex_count() - cluster_count;
   return faces;
 }

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <compare>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -80,18 +81,25 @@ DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, 
                          std::span<const double> cluster_positions, const DualMeshOptions& options = {},
                          const BoundaryLoops* boundary_loops = nullptr);
 
+/// A cluster that keeps a hole below the output resolution open, and the hole's boundary loop.
+struct OpenHole {
+  int32_t cluster;
+  uint32_t loop;
+  auto operator<=>(const OpenHole&) const = default;
+};
+
 /// The labels-only topology of the §VI-D strips, for defect checks that need no positions:
 /// the strip faces of every loop with cluster c as vertex c and the strip vertices numbered
 /// from cluster_count up (`strip_vertices` receives their count). Same faces, up to that
-/// renumbering, as build_dual_mesh adds. O(boundary size). Deterministic. `open_hole_clusters`,
-/// when given, receives the clusters that keep a hole below the output resolution open: each
-/// meets it in two stretches or more, so the hole cannot close as a disc and keeps a strip
-/// (appended, possibly more than once: sort and dedupe).
+/// renumbering, as build_dual_mesh adds. O(boundary size). Deterministic. `open_holes`, when
+/// given, receives the clusters that keep a hole below the output resolution open, with the
+/// hole's loop: each meets it in two stretches or more, so the hole cannot close as a disc and
+/// keeps a strip (appended, possibly more than once: sort and dedupe).
 std::vector<std::array<uint32_t, 3>> boundary_strip_faces(const MeshView& mesh, const BoundaryLoops& loops,
                                                           std::span<const int32_t> labels, uint32_t cluster_count,
                                                           std::span<const uint32_t> cluster_size,
                                                           const DualMeshOptions& options, uint32_t& strip_vertices,
-                                                          std::vector<int32_t>* open_hole_clusters = nullptr);
+                                                          std::vector<OpenHole>* open_holes = nullptr);
 
 /// Output vertices involved in a defect of a triangle mesh: non-manifold edges (> 2 faces),
 /// edges used twice in the same direction, vertices whose faces do not form one fan,

@@ -78,7 +78,11 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   int64_t change = count_change();
   // A cluster that meets a hole below the output resolution in two stretches keeps it open
   // with a strip of slivers (no disc closes a ring with a repeated cluster). Such clusters are
-  // split with the round's defects, at most twice each and only in the first rounds: the
+  // cut between their two longest stretches along the hole, so that each part meets it once
+  // and the ring can close (crude dragon ×10 → 100,000, --deterministic, seeds 1 and 3: 102
+  // and 103 output loops → 9 and 11; ×20 → 200,000 at default threads, seeds 11 and 12: 271
+  // and 298 → 18 and 14; a farthest-point cut often left both stretches in one part). They
+  // are split with the round's defects, at most twice each and only in the first rounds: the
   // halves can meet the hole twice again, and chasing them made the repair longer than the
   // defects did. Dragon, IQ, --deterministic, strip Qav before → after: 5k 0.425 → 0.560,
   // 10k 0.408 → 0.481, 20k 0.442 → 0.492, 40k 0.511 → 0.521; rounds 8, 7, 7, 5 → 8, 6, 6, 5
@@ -88,8 +92,10 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   auto open_holes = [&] {
     std::vector<int32_t> split;
     if (result.rounds >= kHoleSplitRounds) return split;
-    for (int32_t c : tracker.open_hole_clusters())
-      if (c >= 0 && uint32_t(c) < K && hole_splits[c] < 2 && editor.index().size(c) >= 2) split.push_back(c);
+    for (const OpenHole& h : tracker.open_holes())
+      if (h.cluster >= 0 && uint32_t(h.cluster) < K && hole_splits[h.cluster] < 2 && editor.index().size(h.cluster) >= 2)
+        split.push_back(h.cluster);
+    dual::sort_unique(split);
     return split;
   };
   std::vector<int32_t> holes = open_holes();
@@ -100,7 +106,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     return result;
   }
   t = std::chrono::steady_clock::now();
-  detail::ClusterRepair repair(mesh, items, editor, K, adjustable);
+  detail::ClusterRepair repair(mesh, items, editor, K, adjustable, loops);
   result.repair_seconds += seconds_since(t);
   // Vertices of the clusters repaired around a defect, and of their neighbours: the region the
   // final relaxation leaves alone (relaxing it tends to rebuild the thin-feature clusters).
@@ -134,7 +140,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
     for (int32_t c : holes) ++hole_splits[c], round_defects.push_back(c);
     dual::sort_unique(round_defects);
     std::vector<int32_t> touched =
-        repair.round(round_defects, tracker.rings(), asked, options.target_vertices != 0, stats);
+        repair.round(round_defects, tracker.rings(), tracker.open_holes(), asked, options.target_vertices != 0, stats);
     // The round's cuts of clusters at the boundary changed the strips, so the count is off
     // again: set it now, away from what the round changed, so that a round after the last
     // defect round is not needed only for the count (crude dragon ×20 → 200,000: 12 rounds,

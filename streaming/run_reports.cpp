@@ -239,14 +239,14 @@ nlohmann::json guarantee_checks(const PipelineResult& r, uint32_t requested, boo
       {"cluster_vertices", cluster_vertices},
       {"boundary_strip_vertices", rm.dual.boundary_vertices_added},
       {"exact_vertex_count", out.vertices == requested},
-      {"input_euler_characteristic", r.input.euler_characteristic},
+      {"input_euler_characteristic", rm.checks.input_euler_characteristic},
       {"output_euler_characteristic", out.euler_characteristic},
   };
   if (!rm.budget.note.empty()) j["vertex_count_note"] = rm.budget.note;
   bool manifold_ok = out.nonmanifold_edges == 0 && out.nonmanifold_vertices == 0 && out.duplicate_faces == 0 &&
                      out.degenerate_faces == 0 && out.isolated_vertices == 0;
   bool closed_ok = !closed_in || (out.closed_manifold && out.consistently_oriented);
-  bool genus_ok = !closed_in || out.euler_characteristic == r.input.euler_characteristic;
+  bool genus_ok = !closed_in || out.euler_characteristic == rm.checks.input_euler_characteristic;
   if (closed_in && single_component) j["genus_preserved"] = genus_ok;
   else if (closed_in) j["euler_characteristic_preserved"] = genus_ok;
   j["manifold_ok"] = manifold_ok;

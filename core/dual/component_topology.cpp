@@ -152,6 +152,7 @@ ComponentCheck check_component_topology(std::span<const ComponentShape> input, c
     if (!expected[c]) continue;
     ++check.input_components;
     check.input_boundary_loops += input[c].boundary_loops;
+    check.input_euler_characteristic += input[c].euler;
     if (pieces[c] != 1) {
       problem(c, pieces[c] == 0 ? "missing from the output" : "split into " + std::to_string(pieces[c]) + " pieces");
       continue;

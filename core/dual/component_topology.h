@@ -36,6 +36,7 @@ struct ComponentCheck {
   uint64_t input_components = 0;   ///< input components that got clusters
   uint64_t output_components = 0;  ///< connected components of the output
   uint64_t input_boundary_loops = 0;   ///< boundary loops of the input components with clusters
+  int64_t input_euler_characteristic = 0;  ///< Σ χ of the input components with clusters
   uint64_t output_boundary_loops = 0;  ///< boundary loops of the output
   int64_t output_euler_characteristic = 0;  ///< V − E + F of the output, referenced vertices only
   std::vector<std::string> problems;  ///< one line each: "component 3 (1,234 vertices): split into 2 pieces"

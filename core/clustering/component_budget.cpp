@@ -7,6 +7,7 @@
 #include <cmath>
 #include <numeric>
 #include <string>
+#include <unordered_map>
 
 #include "streamcvd/core/clustering/sampling.h"
 #include "streamcvd/core/clustering/sampling_parts.h"
@@ -33,6 +34,58 @@ RangeFill mesh_graph_fill(const MeshView& mesh) {
         if (n > v || !r.contains(n)) b.join(v, n);
     }
   };
+}
+
+// Closed components that enclose (nearly) no volume: of those flagged in `candidates`, the ones
+// whose |signed volume| (divergence theorem: Σ p0 · (p1 × p2) / 6 over their faces) is below
+// kDoubleLayerVolume · area^1.5. Faces are counted at their smallest corner, range by range, and
+// summed in range order (the same for any thread count). O(V + the candidates' faces),
+// TBB-parallel over ranges; memory O(candidates per range).
+constexpr double kDoubleLayerVolume = 1e-3;
+std::vector<uint8_t> double_layer_components(const MeshView& mesh, std::span<const VertexRange> ranges,
+                                             std::span<const uint32_t> component_of_vertex,
+                                             const std::vector<uint8_t>& candidates) {
+  struct Sums {
+    double area = 0, volume = 0;
+  };
+  double origin[3] = {0, 0, 0};  // the first chunk's centre: fewer digits lost in the products
+  if (!mesh.chunks.empty())
+    for (int k = 0; k < 3; ++k) origin[k] = 0.5 * (double(mesh.chunks[0].bbox_min[k]) + mesh.chunks[0].bbox_max[k]);
+  std::vector<std::vector<std::pair<uint32_t, Sums>>> parts(ranges.size());
+  tbb::enumerable_thread_specific<std::unordered_map<uint32_t, Sums>> scratch;
+  for_each_range(mesh, ranges, kReadsAllArrays, [&](size_t i) {
+    std::unordered_map<uint32_t, Sums>& sums = scratch.local();
+    sums.clear();
+    for (uint32_t v = ranges[i].begin; v < ranges[i].end; ++v) {
+      const uint32_t c = component_of_vertex[v];
+      if (c == kNoComponent || !candidates[c]) continue;
+      uint32_t last = UINT32_MAX;
+      for (uint32_t f : mesh.faces_of(v)) {
+        if (f == last) continue;  // listed once per corner holding v
+        last = f;
+        const uint32_t* t = &mesh.triangles[3 * size_t(f)];
+        if (std::min({t[0], t[1], t[2]}) != v) continue;
+        double p[3][3];
+        for (int j = 0; j < 3; ++j)
+          for (int k = 0; k < 3; ++k) p[j][k] = double(mesh.positions[3 * size_t(t[j]) + k]) - origin[k];
+        const double e1[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
+        const double e2[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
+        const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        Sums& s = sums[c];
+        s.area += 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        s.volume += (p[0][0] * n[0] + p[0][1] * n[1] + p[0][2] * n[2]) / 6;  // p0 · (e1 × e2) = p0 · (p1 × p2)
+      }
+    }
+    parts[i].assign(sums.begin(), sums.end());
+    std::sort(parts[i].begin(), parts[i].end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  });
+  std::vector<Sums> total(candidates.size());
+  for (const auto& range_parts : parts)
+    for (const auto& [c, s] : range_parts) total[c].area += s.area, total[c].volume += s.volume;
+  std::vector<uint8_t> flat(candidates.size(), 0);
+  for (size_t c = 0; c < candidates.size(); ++c)
+    flat[c] = candidates[c] && std::abs(total[c].volume) < kDoubleLayerVolume * std::pow(total[c].area, 1.5);
+  return flat;
 }
 
 }  // namespace
@@ -171,12 +224,19 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
     if (small[c] && small_components == SmallComponents::Keep && b.vertices_per_component[c] <= kVerbatimVertices)
       lo[c] = hi[c] = b.vertices_per_component[c];
   }
-  // A sheet the cleaning cut off a non-manifold junction (a fin, a flap of a doubled wall) that
-  // is below the output resolution goes, whatever the small-component rule (issue 16).
-  if (drop_touching_small && std::find(small.begin(), small.end(), uint8_t(1)) != small.end()) {
+  // A sheet the cleaning cut off a non-manifold junction (a fin, a flap of a doubled wall) goes,
+  // whatever the small-component rule (issue 16), when it is below the output resolution or a
+  // double layer: closed round no volume, the two sides of one surface (the cleaning pairs a
+  // face with its near copy, streaming/store/store_clean.cpp), which the output would repeat as
+  // a flat closed piece inside the surface it was cut from.
+  if (drop_touching_small && C > 1) {
     const std::vector<uint8_t> touches = components_touching_others(mesh, b.component_of_vertex.span(), C);
+    std::vector<uint8_t> flat(C, 0);
+    for (uint32_t c = 0; c < C; ++c) flat[c] = touches[c] && !small[c] && b.component_closed[c] && hi[c] > 0;
+    if (std::find(flat.begin(), flat.end(), uint8_t(1)) != flat.end())
+      flat = double_layer_components(mesh, ranges, b.component_of_vertex.span(), flat);
     for (uint32_t c = 0; c < C; ++c)
-      if (small[c] && touches[c] && hi[c] > 0) {
+      if (((small[c] && touches[c]) || flat[c]) && hi[c] > 0) {
         lo[c] = hi[c] = 0;
         ++b.sheets_dropped;
       }
@@ -213,10 +273,8 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
   b.clusters_per_component = sampling::proportional_split(weight, clusters, lo, hi);
   for (uint32_t c = 0; c < C; ++c) {
     b.total_clusters += b.clusters_per_component[c];
-    if (small[c]) {
-      if (b.clusters_per_component[c] == 0) ++b.components_dropped;
-      else ++b.small_components_kept;
-    }
+    if (b.clusters_per_component[c] == 0) ++b.components_dropped;  // small, or a double layer
+    else if (small[c]) ++b.small_components_kept;
   }
   if (b.total_clusters != clusters && b.note.empty()) {
     uint64_t clusterable = 0;

@@ -36,7 +36,7 @@ struct ComponentBudget {
   uint32_t total_clusters = 0;               ///< Σ clusters_per_component (may differ from N)
   uint32_t small_components_kept = 0;        ///< components given the minimum to stay a surface
   uint32_t components_dropped = 0;           ///< components given no cluster (Drop mode, sheets)
-  uint32_t sheets_dropped = 0;               ///< of those, small ones touching another (drop_touching_small)
+  uint32_t sheets_dropped = 0;               ///< of those, cut sheets (drop_touching_small)
   std::string note;                          ///< why total_clusters ≠ N, when it is
 };
 
@@ -51,8 +51,10 @@ struct ComponentBudget {
 /// O(V + E), TBB-parallel over ranges; the result does not depend on the thread count or the
 /// storage. With drop_touching_small, a small component that shares a vertex position with
 /// another (a sheet the topology cleaning cut off: core/mesh/coincident_components.h) is
-/// dropped even under Keep, and counted in sheets_dropped: one more O(V) pass, only when some
-/// component is small.
+/// dropped even under Keep, and so is such a closed one of any size that encloses no volume
+/// (|volume| < 1e-3 area^1.5: a double layer, both sides of one surface); both are counted in
+/// sheets_dropped. One more O(V) pass when there are several components, and one over the
+/// faces of the closed touching ones.
 ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& items, uint32_t clusters,
                                       SmallComponents small_components, ArrayStorage& storage,
                                       bool drop_touching_small = false);

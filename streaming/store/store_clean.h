@@ -14,7 +14,9 @@
 //     more pairs, then the flatter one, then the one whose pairs enclose the space behind their
 //     normals: the inside of a closed, outward-oriented surface), so a fin or a second surface
 //     becomes a piece of its own and the main surface stays closed; faces left without a partner
-//     get a boundary there;
+//     get a boundary there; a face and its near copy (opposite direction, close in angle and
+//     apex: a double layer a subdivision or jitter made inexact) are paired with each other
+//     first, when the others then pair up completely, since their order about the edge is noise;
 //   - each fan of faces around a vertex (faces joined across the vertex's edges: two-face edges
 //     of consistent orientation, the edges above by their pairs) beyond the first gets its own
 //     copy of the vertex (same position and attributes), as CGAL's

@@ -60,6 +60,25 @@ TEST(MeshOptimize, FlipsTheLongDiagonalOfAFlatRhombus) {
   }
 }
 
+// Two flat rhombi side by side (disjoint): only the one with a vertex flagged near is flipped.
+TEST(MeshOptimize, FlipsNearFlaggedVerticesOnly) {
+  MeshBuffers m = rhombus(0);
+  const MeshBuffers far = rhombus(0);
+  for (size_t i = 0; i < far.positions.size(); ++i) m.positions.push_back(far.positions[i] + (i % 3 == 0 ? 10.0f : 0.0f));
+  for (uint32_t v : far.triangles) m.triangles.push_back(v + 4);
+  std::vector<uint8_t> near(m.vertex_count(), 0);
+  near[0] = 1;  // an end of the first rhombus's long diagonal 0-1
+  const std::vector<uint32_t> before = m.triangles;
+  EXPECT_EQ(flip_edges_near(m.positions, m.triangles, near), 1u);
+  EXPECT_NE(std::vector<uint32_t>(m.triangles.begin(), m.triangles.begin() + 6),
+            std::vector<uint32_t>(before.begin(), before.begin() + 6));
+  EXPECT_EQ(std::vector<uint32_t>(m.triangles.begin() + 6, m.triangles.end()),
+            std::vector<uint32_t>(before.begin() + 6, before.end()));  // the far one is left
+  std::fill(near.begin(), near.end(), 1);
+  EXPECT_EQ(flip_edges_near(m.positions, m.triangles, near), 1u);  // now the far one
+  EXPECT_THROW(flip_edges_near(m.positions, m.triangles, std::vector<uint8_t>(3, 1)), InputError);
+}
+
 TEST(MeshOptimize, NoFlipAcrossABend) {
   // Lifting the far corners by 0.5 bends the pair by ~53°: far above the 10° limit.
   MeshBuffers m = rhombus(0.5f);

@@ -485,6 +485,34 @@ double average_triangle_quality(std::span<const float> positions, std::span<cons
   return sum / double(F);
 }
 
+namespace {
+
+// The connectivity and face qualities the passes maintain. O(F · valence), in parallel.
+Work make_work(std::span<float> positions, std::span<uint32_t> triangles, const MeshOptimizeOptions& options) {
+  const size_t V = positions.size() / 3, F = triangles.size() / 3;
+  Work w{positions, triangles, build_twins(triangles, V), std::vector<uint32_t>(V, 0), std::vector<double>(F),
+         std::cos(options.flip_max_dihedral_deg * std::numbers::pi / 180)};
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, F, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t f = r.begin(); f != r.end(); ++f) w.q[f] = face_quality(w, f);
+  });
+  for (uint32_t v : triangles) ++w.face_count[v];
+  return w;
+}
+
+}  // namespace
+
+uint64_t flip_edges_near(std::span<float> positions, std::span<uint32_t> triangles, std::span<const uint8_t> near,
+                         const MeshOptimizeOptions& options) {
+  if (near.size() != positions.size() / 3) throw InputError("flip_edges_near: near needs one entry per vertex");
+  Work w = make_work(positions, triangles, options);
+  std::vector<uint32_t> stack;
+  std::vector<uint8_t> queued(triangles.size(), 0);
+  for (size_t h = triangles.size(); h-- > 0;)
+    if (w.twin[h] > int64_t(h) && (near[triangles[h]] || near[triangles[next_in_face(uint32_t(h))]]))
+      stack.push_back(uint32_t(h)), queued[h] = 1;
+  return flip_pass(w, stack, queued);
+}
+
 MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<uint32_t> triangles,
                                          std::span<const uint8_t> movable, const MeshView* surface,
                                          std::span<uint32_t> surface_face, const MeshOptimizeOptions& options) {
@@ -494,16 +522,10 @@ MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<u
     throw InputError("optimize_mesh_quality: movable and surface_face need one entry per vertex");
   for (uint32_t v : triangles)
     if (v >= V) throw InputError("optimize_mesh_quality: a triangle uses vertex " + std::to_string(v) + " of " + std::to_string(V));
-  const double deg = std::numbers::pi / 180;
-  Work w{positions, triangles, build_twins(triangles, V), std::vector<uint32_t>(V, 0), std::vector<double>(F),
-         std::cos(options.flip_max_dihedral_deg * deg)};
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, F, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t f = r.begin(); f != r.end(); ++f) w.q[f] = face_quality(w, f);
-  });
+  Work w = make_work(positions, triangles, options);
   double q_sum = 0;
   for (size_t f = 0; f < F; ++f) q_sum += w.q[f];
   report.q_avg_before = F ? q_sum / double(F) : 0;
-  for (uint32_t v : triangles) ++w.face_count[v];
 
   std::vector<uint32_t> stack;
   std::vector<uint8_t> queued(triangles.size(), 0);

@@ -58,6 +58,13 @@ MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<u
                                          std::span<const uint8_t> movable, const MeshView* surface,
                                          std::span<uint32_t> surface_face, const MeshOptimizeOptions& options = {});
 
+/// The flips of optimize_mesh_quality (same rules, no moves) from the edges with an end flagged
+/// in `near` (one entry per vertex), spreading to the edges around each flip: a pass after a
+/// local change. Returns the flips. O(F · valence) to set up (in parallel), then O(edges
+/// queued). Throws InputError when near.size() ≠ V. Deterministic.
+uint64_t flip_edges_near(std::span<float> positions, std::span<uint32_t> triangles, std::span<const uint8_t> near,
+                         const MeshOptimizeOptions& options = {});
+
 /// Closest point q of the surface `s` to p, near input face `face`: a walk of at most 32 faces
 /// towards the face p projects into (moves of the quality passes are a fraction of an output
 /// edge, so the walk is a few faces long). On a boundary, or when the walk turns back (across a

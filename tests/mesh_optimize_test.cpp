@@ -77,6 +77,8 @@ TEST(MeshOptimize, FlipsNearFlaggedVerticesOnly) {
   std::fill(near.begin(), near.end(), 1);
   EXPECT_EQ(flip_edges_near(m.positions, m.triangles, near), 1u);  // now the far one
   EXPECT_THROW(flip_edges_near(m.positions, m.triangles, std::vector<uint8_t>(3, 1)), InputError);
+  m.triangles[0] = m.vertex_count();  // out of range
+  EXPECT_THROW(flip_edges_near(m.positions, m.triangles, near), InputError);
 }
 
 TEST(MeshOptimize, NoFlipAcrossABend) {

@@ -487,9 +487,14 @@ double average_triangle_quality(std::span<const float> positions, std::span<cons
 
 namespace {
 
-// The connectivity and face qualities the passes maintain. O(F · valence), in parallel.
-Work make_work(std::span<float> positions, std::span<uint32_t> triangles, const MeshOptimizeOptions& options) {
+// The connectivity and face qualities the passes maintain. O(F · valence), in parallel. Throws
+// InputError for a triangle index ≥ V (`caller` names the function in the message).
+Work make_work(std::span<float> positions, std::span<uint32_t> triangles, const MeshOptimizeOptions& options,
+               const char* caller) {
   const size_t V = positions.size() / 3, F = triangles.size() / 3;
+  for (uint32_t v : triangles)
+    if (v >= V)
+      throw InputError(std::string(caller) + ": a triangle uses vertex " + std::to_string(v) + " of " + std::to_string(V));
   Work w{positions, triangles, build_twins(triangles, V), std::vector<uint32_t>(V, 0), std::vector<double>(F),
          std::cos(options.flip_max_dihedral_deg * std::numbers::pi / 180)};
   tbb::parallel_for(tbb::blocked_range<size_t>(0, F, 4096), [&](const tbb::blocked_range<size_t>& r) {
@@ -504,7 +509,7 @@ Work make_work(std::span<float> positions, std::span<uint32_t> triangles, const 
 uint64_t flip_edges_near(std::span<float> positions, std::span<uint32_t> triangles, std::span<const uint8_t> near,
                          const MeshOptimizeOptions& options) {
   if (near.size() != positions.size() / 3) throw InputError("flip_edges_near: near needs one entry per vertex");
-  Work w = make_work(positions, triangles, options);
+  Work w = make_work(positions, triangles, options, "flip_edges_near");
   std::vector<uint32_t> stack;
   std::vector<uint8_t> queued(triangles.size(), 0);
   for (size_t h = triangles.size(); h-- > 0;)
@@ -520,9 +525,7 @@ MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<u
   const size_t V = positions.size() / 3, F = triangles.size() / 3;
   if (movable.size() != V || (surface && surface_face.size() != V) || triangles.size() != 3 * F)
     throw InputError("optimize_mesh_quality: movable and surface_face need one entry per vertex");
-  for (uint32_t v : triangles)
-    if (v >= V) throw InputError("optimize_mesh_quality: a triangle uses vertex " + std::to_string(v) + " of " + std::to_string(V));
-  Work w = make_work(positions, triangles, options);
+  Work w = make_work(positions, triangles, options, "optimize_mesh_quality");
   double q_sum = 0;
   for (size_t f = 0; f < F; ++f) q_sum += w.q[f];
   report.q_avg_before = F ? q_sum / double(F) : 0;

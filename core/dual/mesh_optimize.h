@@ -61,7 +61,7 @@ MeshOptimizeReport optimize_mesh_quality(std::span<float> positions, std::span<u
 /// The flips of optimize_mesh_quality (same rules, no moves) from the edges with an end flagged
 /// in `near` (one entry per vertex), spreading to the edges around each flip: a pass after a
 /// local change. Returns the flips. O(F · valence) to set up (in parallel), then O(edges
-/// queued). Throws InputError when near.size() ≠ V. Deterministic.
+/// queued). Throws InputError when near.size() ≠ V or a triangle index ≥ V. Deterministic.
 uint64_t flip_edges_near(std::span<float> positions, std::span<uint32_t> triangles, std::span<const uint8_t> near,
                          const MeshOptimizeOptions& options = {});
 

@@ -12,6 +12,7 @@
 #include "streamcvd/core/clustering/sampling.h"
 #include "streamcvd/core/clustering/sampling_parts.h"
 #include "streamcvd/core/mesh/coincident_components.h"
+#include "streamcvd/core/mesh/vec3.h"
 
 namespace streamcvd {
 
@@ -48,7 +49,7 @@ std::vector<uint8_t> double_layer_components(const MeshView& mesh, std::span<con
   struct Sums {
     double area = 0, volume = 0;
   };
-  double origin[3] = {0, 0, 0};  // the first chunk's centre: fewer digits lost in the products
+  vec3::Vec3 origin = {0, 0, 0};  // the first chunk's centre: fewer digits lost in the products
   if (!mesh.chunks.empty())
     for (int k = 0; k < 3; ++k) origin[k] = 0.5 * (double(mesh.chunks[0].bbox_min[k]) + mesh.chunks[0].bbox_max[k]);
   std::vector<std::vector<std::pair<uint32_t, Sums>>> parts(ranges.size());
@@ -65,15 +66,13 @@ std::vector<uint8_t> double_layer_components(const MeshView& mesh, std::span<con
         last = f;
         const uint32_t* t = &mesh.triangles[3 * size_t(f)];
         if (std::min({t[0], t[1], t[2]}) != v) continue;
-        double p[3][3];
-        for (int j = 0; j < 3; ++j)
-          for (int k = 0; k < 3; ++k) p[j][k] = double(mesh.positions[3 * size_t(t[j]) + k]) - origin[k];
-        const double e1[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
-        const double e2[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
-        const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        const vec3::Vec3 p0 = vec3::sub(vec3::point(mesh.positions, t[0]), origin);
+        const vec3::Vec3 p1 = vec3::sub(vec3::point(mesh.positions, t[1]), origin);
+        const vec3::Vec3 p2 = vec3::sub(vec3::point(mesh.positions, t[2]), origin);
+        const vec3::Vec3 n = vec3::cross(vec3::sub(p1, p0), vec3::sub(p2, p0));
         Sums& s = sums[c];
-        s.area += 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        s.volume += (p[0][0] * n[0] + p[0][1] * n[1] + p[0][2] * n[2]) / 6;  // p0 · (e1 × e2) = p0 · (p1 × p2)
+        s.area += 0.5 * vec3::norm(n);
+        s.volume += vec3::dot(p0, n) / 6;  // p0 · (e1 × e2) = p0 · (p1 × p2)
       }
     }
     parts[i].assign(sums.begin(), sums.end());

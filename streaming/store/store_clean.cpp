@@ -26,6 +26,7 @@
 #include "streamcvd/core/mesh/chunked_components.h"
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/core/mesh/topology_conventions.h"
+#include "streamcvd/core/mesh/vec3.h"
 
 namespace streamcvd {
 namespace {
@@ -207,12 +208,8 @@ struct Faces {
 // longest edge of the two faces.
 bool apexes_close(const Faces& fs, uint32_t a, uint32_t b, uint32_t p, uint32_t q) {
   auto d2 = [&](uint32_t x, uint32_t y) {
-    double s = 0;
-    for (int k = 0; k < 3; ++k) {
-      const double t = double(fs.m.positions[3 * size_t(x) + k]) - fs.m.positions[3 * size_t(y) + k];
-      s += t * t;
-    }
-    return s;
+    const vec3::Vec3 d = vec3::sub(vec3::point(fs.m.positions, x), vec3::point(fs.m.positions, y));
+    return vec3::dot(d, d);
   };
   const double longest = std::max({d2(a, b), d2(a, p), d2(b, p), d2(a, q), d2(b, q)});
   return d2(p, q) < kLayerApex * kLayerApex * longest;
@@ -302,8 +299,8 @@ void pair_edge(const Faces& fs, uint32_t a, uint32_t b, std::span<const uint32_t
     return x.angle != y.angle ? x.angle < y.angle : x.index < y.index;
   });
   const size_t k = s.size();
-  // Double layers first: two faces of opposite direction within kCoincident of each other about
-  // the edge are a face and its copy (a subdivided or jittered double layer), whose order about
+  // Double layers first: two faces of opposite direction within kLayerAngle of each other about
+  // the edge, apexes close (apexes_close), are a face and its copy (a subdivided or jittered double layer), whose order about
   // the edge is noise. Paired with the chirality rule, that order would choose, edge by edge,
   // which copy continues the surface, and a copy attached along some of its edges and not others
   // opens a hole at each change (crude dragon subdivided 10×10: 2,384 boundary loops after the
@@ -311,7 +308,7 @@ void pair_edge(const Faces& fs, uint32_t a, uint32_t b, std::span<const uint32_t
   // become a thin closed piece of their own, as the double-layer rule drops a face and its exact
   // reverse whole; this holds when the other faces then pair up completely, else the edge is
   // paired as a whole.
-  size_t layered = 0;
+  bool layered = false;
   for (;;) {
     size_t best = k;
     double best_gap = kLayerAngle;
@@ -325,9 +322,9 @@ void pair_edge(const Faces& fs, uint32_t a, uint32_t b, std::span<const uint32_t
     EdgeFace &x = s[best], &y = s[(best + 1) % k];
     x.layer = y.layer = true;
     partner[x.index] = y.index, partner[y.index] = x.index;
-    layered += 2;
+    layered = true;
   }
-  if (layered > 0) {
+  if (layered) {
     for (size_t j = 0; j < k; ++j)
       if (!s[j].layer) s.push_back(s[j]);  // the other faces, in angle order, after the k
     const std::span<const EdgeFace> rest(s.data() + k, s.size() - k);

@@ -133,12 +133,12 @@ Items clustering_items(Job& job, const Fields& fields) {
   Items items;
   // The anisotropic energy is area-weighted (the tensors carry the curvature); the gradation
   // density then only shapes the initial sampling, as in the paper's A/AQ (§VII).
-  items.energy = compute_item_data(mesh, job.plan.tensors ? std::span<const float>() : fields.density, job.storage);
+  items.energy = compute_item_data(mesh, job.plan.tensors ? std::span<const float>() : fields.density, job.storage,
+                                   job.plan.quadrics ? ItemQuadrics::per_vertex : ItemQuadrics::none);
   if (job.plan.tensors) {
     items.sampling = compute_item_data(mesh, fields.sampling_density, job.storage);
     attach_tensors(items.energy, large_array_of(std::span<const float>(fields.tensors)));
   }
-  if (job.plan.quadrics) items.energy.quadric = vertex_quadrics(mesh, items.energy.origin, job.storage);
   job.seconds.items = job.elapsed();
   return items;
 }

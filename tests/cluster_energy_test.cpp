@@ -45,9 +45,8 @@ struct Fixture {
   std::vector<int32_t> labels;
   uint32_t K = 0;
   Fixture() {
-    items = compute_item_data(mesh.view);
+    items = compute_item_data(mesh.view, {}, ram_storage(), ItemQuadrics::per_vertex);
     attach_tensors(items, large_array_of(std::span<const float>(random_tensors(mesh.view.vertex_count(), 7))));
-    items.quadric = vertex_quadrics(mesh.view, items.origin);
     ComponentBudget b = plan_component_budget(mesh.view, items, 30, SmallComponents::Keep, ram_storage());
     K = b.total_clusters;
     labels = test::to_vector(initial_sampling(mesh.view, items, b, 3, ram_storage()));

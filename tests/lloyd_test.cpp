@@ -46,8 +46,7 @@ struct Sampled {
   ItemData items;
   uint32_t K = 0;
   std::vector<int32_t> initial;
-  Sampled(const MeshBuffers& mesh, uint32_t clusters, uint64_t seed) : m(mesh), items(compute_item_data(m.view)) {
-    items.quadric = vertex_quadrics(m.view, items.origin);
+  Sampled(const MeshBuffers& mesh, uint32_t clusters, uint64_t seed) : m(mesh), items(compute_item_data(m.view, {}, ram_storage(), ItemQuadrics::per_vertex)) {
     ComponentBudget b = plan_component_budget(m.view, items, clusters, SmallComponents::Keep, ram_storage());
     K = b.total_clusters;
     initial = test::to_vector(initial_sampling(m.view, items, b, seed, ram_storage()));

@@ -195,8 +195,7 @@ TEST(MetricAcceptance, FandiskSharpCornersKeptByIQ) {
       if (metric == Metric::I) kept_isotropic = kept;
       if (metric == Metric::IQ && kept < corners.size()) {
         const MeshView view = r.store.view();
-        ItemData items = compute_item_data(view);
-        items.quadric = vertex_quadrics(view, items.origin);
+        ItemData items = compute_item_data(view, {}, ram_storage(), ItemQuadrics::per_vertex);
         ClusterState state = make_cluster_state(items, r.result.cluster_of_vertex, r.result.clusters, metric, threshold);
         update_site_offsets(state);
         for (size_t i = 0; i < corners.size(); ++i)

@@ -2,6 +2,7 @@
 // anisotropic tensors (eqs. 21-22) with the isotropic blend on planes and cylinders, per-vertex
 // quadrics and the truncated QEM solve on planes, creases and corners, degenerate input.
 #include "streamcvd/core/fields/metric_field.h"
+#include "streamcvd/core/clustering/item_data.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -289,6 +290,13 @@ TEST(MetricField, CylinderTensorFromMeasuredCurvature) {
   EXPECT_EQ(checked, 24 * 64);
 }
 
+// The per-vertex quadrics of the items (IQ/AQ), in the items' frame (the bounding box centre).
+LargeArray<float> quadrics_of(const MeshView& view, const double expected_origin[3]) {
+  ItemData items = compute_item_data(view, {}, ram_storage(), ItemQuadrics::per_vertex);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(items.origin[c], expected_origin[c], 1e-5) << c;
+  return std::move(items.quadric);
+}
+
 TEST(MetricField, QuadricOfAFlatPatchProjectsTheCentroid) {
   MeshBuffers m = make_grid(11, 11, 2.0f, 2.0f);
   // Tilt the plane: z = 0.3 x + 0.2 y + 5, far from the origin to exercise the relative frame.
@@ -297,8 +305,8 @@ TEST(MetricField, QuadricOfAFlatPatchProjectsTheCentroid) {
     m.positions[i + 2] = float(0.3 * (m.positions[i] - 100) + 0.2 * m.positions[i + 1] + 5);
   }
   const MeshStore store = store_of(m);
-  const double origin[3] = {101, 1, 5.5};  // (101, 1, 5.5) lies on the plane
-  const LargeArray<float> q = vertex_quadrics(store.view(), origin);
+  const double origin[3] = {101, 1, 5.5};  // the bounding box centre lies on the plane
+  const LargeArray<float> q = quadrics_of(store.view(), origin);
   double sum[10] = {};
   for (uint32_t v = 0; v < store.view().vertex_count(); ++v)
     for (int k = 0; k < 10; ++k) sum[k] += q[10 * v + k];
@@ -319,7 +327,7 @@ TEST(MetricField, QuadricOfAFlatPatchProjectsTheCentroid) {
   std::uniform_real_distribution<float> bump(-1e-5f, 1e-5f);
   for (size_t i = 2; i < m.positions.size(); i += 3) m.positions[i] += bump(rng);
   const MeshStore bumpy = store_of(m);
-  const LargeArray<float> qb = vertex_quadrics(bumpy.view(), origin);
+  const LargeArray<float> qb = compute_item_data(bumpy.view(), {}, ram_storage(), ItemQuadrics::per_vertex).quadric;
   double sb[10] = {};
   for (uint32_t v = 0; v < bumpy.view().vertex_count(); ++v)
     for (int k = 0; k < 10; ++k) sb[k] += qb[10 * v + k];
@@ -330,7 +338,7 @@ TEST(MetricField, QuadricOfAFlatPatchProjectsTheCentroid) {
 TEST(MetricField, QuadricOfACubeCornerAndCrease) {
   const MeshStore store = store_of(cube(2.0, 1000, -500, 7));
   const double origin[3] = {1001, -499, 8};  // the cube centre
-  const LargeArray<float> q = vertex_quadrics(store.view(), origin);
+  const LargeArray<float> q = quadrics_of(store.view(), origin);
   // Corner 0 = (1000, -500, 7) → (-1, -1, -1) relative: three planes meet there.
   double Q[10];
   for (int k = 0; k < 10; ++k) Q[k] = q[k];
@@ -400,8 +408,7 @@ TEST(MetricField, DegenerateInputStaysFinite) {
     const Eigen::Matrix3d K = tensor(g.tensors, v);
     ASSERT_TRUE(K.allFinite() && K.isDiagonal() && K(0, 0) > 0) << v;
   }
-  const double origin[3] = {0, 0, 0};
-  const LargeArray<float> q = vertex_quadrics(view, origin);
+  const LargeArray<float> q = compute_item_data(view, {}, ram_storage(), ItemQuadrics::per_vertex).quadric;
   for (float x : q) ASSERT_TRUE(std::isfinite(x));
   for (uint32_t v : {100u, 101u}) {  // the isolated vertices
     for (int j = 0; j < 10; ++j) ASSERT_EQ(q[10 * v + j], 0.0f);
@@ -419,25 +426,24 @@ TEST(MetricField, DegenerateInputStaysFinite) {
   const MeshView empty;
   EXPECT_TRUE(gradation_density(empty, Curvature{}, 1.0).empty());
   EXPECT_TRUE(anisotropic_field(empty, Curvature{}).tensors.empty());
-  EXPECT_TRUE(vertex_quadrics(empty, origin).empty());
+  EXPECT_TRUE(compute_item_data(empty, {}, ram_storage(), ItemQuadrics::per_vertex).quadric.empty());
 }
 
 TEST(MetricField, IndependentOfThreadCount) {
   const MeshStore store = store_of(sphere_and_plane());
   const Curvature k = compute_curvature(store.view());
   std::vector<float> d1, t1, q1, d4, t4, q4;
-  const double origin[3] = {2, 2, 1};
   {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
     d1 = gradation_density(store.view(), k, 1.5);
     t1 = anisotropic_tensors(store.view(), k);
-    q1 = to_vector(vertex_quadrics(store.view(), origin));
+    q1 = to_vector(compute_item_data(store.view(), {}, ram_storage(), ItemQuadrics::per_vertex).quadric);
   }
   {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 4);
     d4 = gradation_density(store.view(), k, 1.5);
     t4 = anisotropic_tensors(store.view(), k);
-    q4 = to_vector(vertex_quadrics(store.view(), origin));
+    q4 = to_vector(compute_item_data(store.view(), {}, ram_storage(), ItemQuadrics::per_vertex).quadric);
   }
   EXPECT_EQ(d1, d4);
   EXPECT_EQ(t1, t4);

@@ -90,8 +90,7 @@ TEST(ParallelClustering, EnergyWithinATenthOfAPercentOfSerial) {
   const MeshBuffers sphere = make_icosphere(6);  // 40962 vertices
   MeshStore store = MeshStore::build(sphere.view());
   const MeshView view = store.view();
-  ItemData items = compute_item_data(view);
-  items.quadric = vertex_quadrics(view, items.origin);
+  ItemData items = compute_item_data(view, {}, ram_storage(), ItemQuadrics::per_vertex);
   const ComponentBudget budget = plan_component_budget(view, items, 2000, SmallComponents::Keep, ram_storage());
   auto energy = [&](Metric metric, uint32_t threads, bool deterministic, std::vector<int32_t> labels) {
     ClusteringOptions o;

@@ -78,7 +78,7 @@ ClusterState make_cluster_state(const ItemData& items, std::span<const int32_t> 
                                 " needs a tensor per item (attach_tensors)");
   if (quadrics && items.quadric.size() != 10 * items.weight.size())
     throw std::invalid_argument(std::string("make_cluster_state: metric ") + metric_name(metric) +
-                                " needs a quadric per item (vertex_quadrics)");
+                                " needs a quadric per item (ItemQuadrics::per_vertex)");
   if (aniso) s.aniso.assign(cluster_count, AnisoSums{});
   if (quadrics) {
     s.quadric.assign(cluster_count, QuadricSums{});

@@ -10,7 +10,8 @@
 
 namespace streamcvd {
 
-ItemData compute_item_data(const MeshView& mesh, std::span<const float> density, ArrayStorage& storage) {
+ItemData compute_item_data(const MeshView& mesh, std::span<const float> density, ArrayStorage& storage,
+                           ItemQuadrics quadrics) {
   const uint32_t V = mesh.vertex_count();
   ItemData items;
   if (V > 0) {
@@ -25,15 +26,21 @@ ItemData compute_item_data(const MeshView& mesh, std::span<const float> density,
   items.weight = LargeArray<double>(V, storage, "item weights");
   LargeArray<double> area(V, storage, "item areas");
   items.centroid = LargeArray<float>(size_t(3) * V, storage, "item centroids");
+  const bool with_quadrics = quadrics == ItemQuadrics::per_vertex;
+  if (with_quadrics) items.quadric = LargeArray<float>(size_t(10) * V, storage, "vertex quadrics");
   const float* P = mesh.positions.data();
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, V, 4096), [&](const tbb::blocked_range<uint32_t>& r) {
     const RangeVisit visit(mesh, "items", {r.begin(), r.end()}, kReadsPositions | kReadsTriangles | kReadsVertexFaces);
     for (uint32_t v = r.begin(); v != r.end(); ++v) {
-      double w = 0, g[3] = {0, 0, 0}, pv[3] = {0, 0, 0};
-      for_each_dual_cell_part(mesh, v, items.origin, [&](double cell, const double* p, const double* pa, const double* pb) {
-        w += cell;
-        for (int c = 0; c < 3; ++c) g[c] += cell * (22.0 * p[c] + 7.0 * pa[c] + 7.0 * pb[c]) / 36.0;
-      });
+      double w = 0, g[3] = {0, 0, 0}, pv[3] = {0, 0, 0}, q[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+      for_each_dual_cell_part(mesh, v, items.origin,
+                              [&](double cell, const double* p, const double* pa, const double* pb, const double* x) {
+                                w += cell;
+                                for (int c = 0; c < 3; ++c) g[c] += cell * (22.0 * p[c] + 7.0 * pa[c] + 7.0 * pb[c]) / 36.0;
+                                if (with_quadrics) add_face_quadric(cell, x, p, q);
+                              });
+      if (with_quadrics)
+        for (int k = 0; k < 10; ++k) items.quadric[10 * size_t(v) + k] = float(q[k]);
       for (int c = 0; c < 3; ++c) pv[c] = P[3 * size_t(v) + c] - items.origin[c];
       double rho = density.empty() ? 1.0 : double(density[v]);
       for (int c = 0; c < 3; ++c) items.centroid[3 * v + c] = float(w > 0 ? g[c] / w : pv[c]);

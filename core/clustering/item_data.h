@@ -25,13 +25,16 @@ struct ItemData {
   /// is K_j = M_j·T_j, so the anisotropic energy is area-weighted like the isotropic one.
   LargeArray<float> tensor;
   double sum_tensor_norm2 = 0;  ///< Σ γ_jᵀK_jγ_j (the constant of eq. 17, for reporting E)
-  /// Metrics IQ/AQ: per-vertex quadric, 10 floats (A 6, b 3, c), relative to `origin`.
+  /// Metrics IQ/AQ: per-vertex Garland-Heckbert quadric (paper §V-C, ref [28]), the sum over
+  /// the vertex's faces of (area/3)·(nᵀ(x − p))², x relative to `origin`: 10 floats, A_xx, A_xy,
+  /// A_xz, A_yy, A_yz, A_zz (length²), b_x, b_y, b_z (length³), c (length⁴), with
+  /// Q(x) = xᵀAx + 2bᵀx + c. Zero-area faces and isolated vertices contribute zeros.
   LargeArray<float> quadric;
 };
 
-/// Visits the barycentric dual cell of vertex v face by face: fn(cell, pv, pa, pb) for each face
-/// (v, a, b) of v in its orientation, with cell = a third of the face's area and the corners in
-/// double relative to `origin`. O(deg v), no allocation. The one definition of |P_j| (eq. 10):
+/// Visits the barycentric dual cell of vertex v face by face: fn(cell, pv, pa, pb, x) for each
+/// face (v, a, b) of v in its orientation, with cell = a third of the face's area, the corners in
+/// double relative to `origin` and x = (pa − pv) × (pb − pv), the face's normal of length 2·area. O(deg v), no allocation. The one definition of |P_j| (eq. 10):
 /// the item weights and the area-weighted attribute means (core/mesh/vertex_attributes.h) use it.
 template <class Fn>
 inline void for_each_dual_cell_part(const MeshView& mesh, uint32_t v, const double origin[3], const Fn& fn) {
@@ -53,17 +56,42 @@ inline void for_each_dual_cell_part(const MeshView& mesh, uint32_t v, const doub
     const double e1[3] = {pa[0] - pv[0], pa[1] - pv[1], pa[2] - pv[2]};
     const double e2[3] = {pb[0] - pv[0], pb[1] - pv[1], pb[2] - pv[2]};
     const double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2], cz = e1[0] * e2[1] - e1[1] * e2[0];
-    fn(std::sqrt(cx * cx + cy * cy + cz * cz) / 6.0, pv, pa, pb);
+    const double x[3] = {cx, cy, cz};
+    fn(std::sqrt(cx * cx + cy * cy + cz * cz) / 6.0, pv, pa, pb, x);
   }
 }
+
+/// Adds `cell` · the plane quadric of a face to q (the order of ItemData::quadric): x is the
+/// face's normal (any length), p a point of the face, both relative to the items' origin. A face
+/// without a plane (zero or non-finite normal) adds nothing. O(1).
+inline void add_face_quadric(double cell, const double x[3], const double p[3], double q[10]) {
+  const double len = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+  if (!(len > 0) || !std::isfinite(len)) return;
+  const double n[3] = {x[0] / len, x[1] / len, x[2] / len};
+  const double d = -(n[0] * p[0] + n[1] * p[1] + n[2] * p[2]);
+  q[0] += cell * n[0] * n[0];
+  q[1] += cell * n[0] * n[1];
+  q[2] += cell * n[0] * n[2];
+  q[3] += cell * n[1] * n[1];
+  q[4] += cell * n[1] * n[2];
+  q[5] += cell * n[2] * n[2];
+  q[6] += cell * d * n[0];
+  q[7] += cell * d * n[1];
+  q[8] += cell * d * n[2];
+  q[9] += cell * d * d;
+}
+
+/// What compute_item_data fills besides M_j and γ_j.
+enum class ItemQuadrics : uint8_t { none, per_vertex };
 
 /// Computes M_j and γ_j for every vertex. The barycentric dual cell of vertex v in triangle
 /// (v, a, b) has area A/3 and centroid (22v + 7a + 7b)/36. `density` (size V, or empty for
 /// ρ = 1) multiplies each weight. Isolated vertices get weight 0 and γ = their position.
-/// O(F) time; TBB-parallel over vertices (chunk order), deterministic. The arrays (20 bytes per
-/// vertex) come from `storage`.
+/// With ItemQuadrics::per_vertex it also fills ItemData::quadric (metrics IQ/AQ) in the same
+/// pass over the faces. O(F) time; TBB-parallel over vertices (chunk order), deterministic. The
+/// arrays (20 bytes per vertex, 60 with quadrics) come from `storage`.
 ItemData compute_item_data(const MeshView& mesh, std::span<const float> density = {},
-                           ArrayStorage& storage = ram_storage());
+                           ArrayStorage& storage = ram_storage(), ItemQuadrics quadrics = ItemQuadrics::none);
 
 /// Sets items.tensor (6 floats per vertex) and the constant Σ γ_jᵀK_jγ_j. O(V), fixed order.
 void attach_tensors(ItemData& items, LargeArray<float> tensors);

@@ -1,5 +1,5 @@
-// Metric fields of paper §VI-H (eqs. 20-22) and the per-vertex quadrics of §V-C (Garland &
-// Heckbert 1997). Statistics use fixed-order sums and a total-order sort so every result is
+// Metric fields of paper §VI-H (eqs. 20-22) and the QEM solve of §V-C (Garland & Heckbert
+// 1997). Statistics use fixed-order sums and a total-order sort so every result is
 // bit-identical for any thread count.
 #include "streamcvd/core/fields/metric_field.h"
 
@@ -246,50 +246,6 @@ AnisotropicField anisotropic_field(const MeshView& mesh, const Curvature& curvat
 
 std::vector<float> anisotropic_tensors(const MeshView& mesh, const Curvature& curvature, const MetricFieldOptions& options) {
   return anisotropic_field(mesh, curvature, options).tensors;
-}
-
-LargeArray<float> vertex_quadrics(const MeshView& mesh, std::span<const double, 3> origin, ArrayStorage& storage) {
-  const uint32_t V = mesh.vertex_count();
-  if (V > 0 && mesh.vertex_face_offsets.size() != size_t(V) + 1)
-    throw InputError("vertex quadrics: mesh has no vertex-face adjacency");
-  LargeArray<float> q(10 * size_t(V), storage, "vertex quadrics");
-  const float* P = mesh.positions.data();
-  const uint32_t* T = mesh.triangles.data();
-  const uint64_t F = mesh.face_count();
-  const double o[3] = {origin[0], origin[1], origin[2]};
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, V, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
-    for (uint32_t v = r.begin(); v != r.end(); ++v) {
-      double s[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
-      for (uint32_t f : mesh.faces_of(v)) {
-        if (f >= F) continue;
-        const uint32_t i[3] = {T[3 * size_t(f)], T[3 * size_t(f) + 1], T[3 * size_t(f) + 2]};
-        if (i[0] >= V || i[1] >= V || i[2] >= V) continue;
-        double p[3][3];
-        for (int k = 0; k < 3; ++k)
-          for (int c = 0; c < 3; ++c) p[k][c] = double(P[3 * size_t(i[k]) + c]) - o[c];
-        const double e1[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
-        const double e2[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
-        const double x[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-        const double len = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
-        if (!(len > 0) || !std::isfinite(len)) continue;  // zero-area face: no plane
-        // (area/3)·n nᵀ = x xᵀ / (6 |x|) with x the unnormalised normal; d = −nᵀp0.
-        const double w = len / 6.0, n[3] = {x[0] / len, x[1] / len, x[2] / len};
-        const double d = -(n[0] * p[0][0] + n[1] * p[0][1] + n[2] * p[0][2]);
-        s[0] += w * n[0] * n[0];
-        s[1] += w * n[0] * n[1];
-        s[2] += w * n[0] * n[2];
-        s[3] += w * n[1] * n[1];
-        s[4] += w * n[1] * n[2];
-        s[5] += w * n[2] * n[2];
-        s[6] += w * d * n[0];
-        s[7] += w * d * n[1];
-        s[8] += w * d * n[2];
-        s[9] += w * d * d;
-      }
-      for (int k = 0; k < 10; ++k) q[10 * size_t(v) + k] = float(s[k]);
-    }
-  });
-  return q;
 }
 
 int qem_point(const double A[6], const double b[3], const double centroid[3], double relative_threshold,

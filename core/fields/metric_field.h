@@ -1,6 +1,7 @@
 // Per-vertex metric fields for the clustering (paper §V-C, §VI-H): the gradation density of
-// eq. 20 (metric I(γ)), the anisotropic tensors of eqs. 21-22 (metrics A, AQ) and per-vertex
-// Garland-Heckbert quadrics with a truncated-eigen QEM solve (metrics IQ, AQ). Pure functions
+// eq. 20 (metric I(γ)), the anisotropic tensors of eqs. 21-22 (metrics A, AQ) and the
+// truncated-eigen QEM solve of the metrics IQ, AQ (the per-vertex quadrics are item data,
+// core/clustering/item_data.h, filled in the same pass as the dual cells). Pure functions
 // of the mesh and its curvature (core/fields/curvature.h); the clustering energy lives elsewhere.
 //
 // Robustness choices, shared by the density and the tensors:
@@ -89,17 +90,6 @@ AnisotropicField anisotropic_field(const MeshView& mesh, const Curvature& curvat
 std::vector<float> anisotropic_tensors(const MeshView& mesh, const Curvature& curvature,
                                        const MetricFieldOptions& options = {});
 
-/// Per-vertex Garland-Heckbert quadrics (paper §V-C, ref [28]): for vertex j the sum over its
-/// incident faces of (area/3) · the face's plane quadric, so that
-///   Q_j(x) = xᵀ A x + 2 bᵀ x + c = Σ_f (area_f / 3) · (n_fᵀ (x − p_f))²,
-/// x relative to `origin` (pass ItemData::origin so float32 storage keeps its precision).
-/// 10 floats per vertex: A_xx, A_xy, A_xz, A_yy, A_yz, A_zz, b_x, b_y, b_z, c (A in length², b in
-/// length³, c in length⁴); summed in double. Zero-area or non-finite faces and isolated vertices
-/// contribute zeros. O(F) (each face evaluated by its 3 vertices); TBB-parallel, deterministic.
-/// The array (40 bytes per vertex) comes from `storage`.
-LargeArray<float> vertex_quadrics(const MeshView& mesh, std::span<const double, 3> origin,
-                                  ArrayStorage& storage = ram_storage());
-
 /// Minimiser of Q(x) = xᵀAx + 2bᵀx + c, solved around `centroid` with a truncated pseudo-inverse:
 /// x = centroid + Σ_{λ_k > t·λmax} u_k u_kᵀ (−b − A·centroid) / λ_k (eigen-decomposition of the
 /// symmetric A, Eigen computeDirect), t = relative_threshold (1e-3 is a sound default). Along a
@@ -109,7 +99,7 @@ LargeArray<float> vertex_quadrics(const MeshView& mesh, std::span<const double, 
 int qem_point(const double A[6], const double b[3], const double centroid[3], double relative_threshold,
               double out[3]);
 
-/// Q(x) for a quadric stored as 10 values in the order of vertex_quadrics. O(1).
+/// Q(x) for a quadric stored as 10 values in the order of ItemData::quadric. O(1).
 double quadric_value(const double q[10], const double x[3]);
 
 }  // namespace streamcvd

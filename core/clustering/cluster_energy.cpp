@@ -1,5 +1,10 @@
 #include "streamcvd/core/clustering/cluster_energy.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <stdexcept>
@@ -84,28 +89,38 @@ ClusterState make_cluster_state(const ItemData& items, std::span<const int32_t> 
     s.quadric.assign(cluster_count, QuadricSums{});
     s.offset.assign(3 * size_t(cluster_count), 0.0);
   }
-  for (size_t v = 0; v < labels.size(); ++v) {
-    const int32_t l = labels[v];
-    if (l < 0) continue;
-    const double m = items.weight[v];
-    const float* g = &items.centroid[3 * v];
-    ClusterSums& c = s.iso[l];
-    c.weight += m;
-    for (int k = 0; k < 3; ++k) c.sum[k] += m * g[k];
-    ++c.count;
-    if (aniso) {
-      AnisoSums& a = s.aniso[l];
-      const float* T = &items.tensor[6 * v];
-      for (int k = 0; k < 6; ++k) a.tensor[k] += m * T[k];
-      double gd[3] = {g[0], g[1], g[2]}, w[3];
-      energy_detail::tensor_times(m, T, gd, w);
-      for (int k = 0; k < 3; ++k) a.sum[k] += w[k];
-    }
-    if (quadrics) {
-      const float* q = &items.quadric[10 * v];
-      for (int k = 0; k < 10; ++k) s.quadric[l].q[k] += q[k];
-    }
-  }
+  // Each cluster's sums run over its vertices in vertex order, whichever thread adds them: the
+  // cluster ids are dealt out in blocks of 4096 to `parts` parts, and each part scans every
+  // label and sums its own clusters. The sums are those of one serial pass for any part count;
+  // a scan of the labels (4 bytes per vertex) per part is the price.
+  const uint32_t parts = labels.size() < (size_t(1) << 16)
+                             ? 1u
+                             : uint32_t(std::clamp(tbb::this_task_arena::max_concurrency(), 1, 8));
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, parts, 1), [&](const tbb::blocked_range<uint32_t>& r) {
+    for (uint32_t part = r.begin(); part != r.end(); ++part)
+      for (size_t v = 0; v < labels.size(); ++v) {
+        const int32_t l = labels[v];
+        if (l < 0 || (uint32_t(l) >> 12) % parts != part) continue;
+        const double m = items.weight[v];
+        const float* g = &items.centroid[3 * v];
+        ClusterSums& c = s.iso[l];
+        c.weight += m;
+        for (int k = 0; k < 3; ++k) c.sum[k] += m * g[k];
+        ++c.count;
+        if (aniso) {
+          AnisoSums& a = s.aniso[l];
+          const float* T = &items.tensor[6 * v];
+          for (int k = 0; k < 6; ++k) a.tensor[k] += m * T[k];
+          double gd[3] = {g[0], g[1], g[2]}, w[3];
+          energy_detail::tensor_times(m, T, gd, w);
+          for (int k = 0; k < 3; ++k) a.sum[k] += w[k];
+        }
+        if (quadrics) {
+          const float* q = &items.quadric[10 * v];
+          for (int k = 0; k < 10; ++k) s.quadric[l].q[k] += q[k];
+        }
+      }
+  });
   for (uint32_t c = 0; c < cluster_count; ++c) {
     update_iso_centroid(s.iso[c]);
     if (aniso) update_aniso_centroid(s.aniso[c], s.iso[c]);

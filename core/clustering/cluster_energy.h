@@ -65,10 +65,11 @@ struct ClusterState {
   uint32_t cluster_count() const { return uint32_t(iso.size()); }
 };
 
-/// Builds the accumulators of `metric` from the labels (fixed order: deterministic). Offsets
-/// start at zero (use_offsets false). Throws std::invalid_argument when the items lack what the
-/// metric needs: a tensor per item for A/AQ (attach_tensors), a quadric per item for IQ/AQ; the
-/// state's metric is always `metric`. O(V + K). Not thread-safe on the same state.
+/// Builds the accumulators of `metric` from the labels, each cluster's in vertex order (the same
+/// sums for any thread count; TBB-parallel by blocks of cluster ids, each part scanning the
+/// labels). Offsets start at zero (use_offsets false). Throws std::invalid_argument when the
+/// items lack what the metric needs: a tensor per item for A/AQ (attach_tensors), a quadric per
+/// item for IQ/AQ; the state's metric is always `metric`. O(V·parts + K), parts ≤ 8.
 ClusterState make_cluster_state(const ItemData& items, std::span<const int32_t> labels, uint32_t cluster_count,
                                 Metric metric, double qem_threshold = 1e-2);
 

@@ -34,7 +34,8 @@ RangeFill same_label_joins(const MeshView& mesh, std::span<const int32_t> labels
 }  // namespace
 
 uint64_t clean_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                        uint32_t cluster_count, ClusteringReport& report, ArrayStorage& storage) {
+                        uint32_t cluster_count, ClusteringReport& report, ArrayStorage& storage,
+                        std::vector<uint8_t>* changed) {
   const std::vector<VertexRange> ranges = ranges_of(mesh);
   LargeArray<uint32_t> piece(mesh.vertex_count(), storage, "cluster pieces");
   const ComponentTable table = chunked_component_labels(ranges, same_label_joins(mesh, labels), piece.span());
@@ -52,15 +53,19 @@ uint64_t clean_clusters(const MeshView& mesh, const ItemData& items, std::span<i
     if (best[l] == UINT32_MAX || weight[p] > weight[best[l]]) best[l] = p;
   }
   for (uint32_t c = 0; c < cluster_count; ++c) report.disconnected_clusters += pieces[c] > 1;
-  uint64_t reset = 0;
+  std::vector<uint32_t> freed;  // the vertices reset (a few per thousand)
   for (uint32_t v = 0; v < mesh.vertex_count(); ++v)
     if (labels[v] >= 0 && best[labels[v]] != piece[v]) {
+      if (changed) (*changed)[labels[v]] = 1;
       labels[v] = -1;
-      ++reset;
+      freed.push_back(v);
     }
-  if (reset) absorb_free_vertices(mesh, labels);
-  report.cleaned_vertices += reset;
-  return reset;
+  if (!freed.empty()) absorb_free_vertices(mesh, labels);
+  if (changed)
+    for (uint32_t v : freed)
+      if (labels[v] >= 0) (*changed)[labels[v]] = 1;
+  report.cleaned_vertices += freed.size();
+  return freed.size();
 }
 
 bool clusters_connected(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count) {

@@ -4,6 +4,7 @@
 #include "streamcvd/core/clustering/clustering.h"
 
 #include <cctype>
+#include <cmath>
 #include <string>
 
 #include "streamcvd/core/clustering/parallel_clustering.h"
@@ -36,6 +37,24 @@ double clustering_energy(const ItemData& items, std::span<const ClusterSums> sum
   return state_energy(items, s);
 }
 
+namespace {
+
+// Marks the clusters whose site moved by more than 1e-6 of the mean cluster radius: what the
+// drift of incremental sums (or Q offsets frozen after offset_update_loops) left behind.
+void mark_moved_sites(std::span<const double> before, std::span<const double> after, double area,
+                      std::vector<uint8_t>& marks) {
+  const size_t K = marks.size();
+  const double radius = K > 0 ? std::sqrt(area / (double(K) * 3.141592653589793)) : 0.0;
+  const double tolerance2 = 1e-12 * radius * radius;
+  for (size_t c = 0; c < K; ++c) {
+    const double dx = after[3 * c] - before[3 * c], dy = after[3 * c + 1] - before[3 * c + 1],
+                 dz = after[3 * c + 2] - before[3 * c + 2];
+    if (!(dx * dx + dy * dy + dz * dz <= tolerance2)) marks[c] = 1;
+  }
+}
+
+}  // namespace
+
 ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                                      uint32_t cluster_count, const ClusteringOptions& options) {
   ClusteringReport report;
@@ -45,17 +64,25 @@ ClusteringReport minimize_clustering(const MeshView& mesh, const ItemData& items
   // the QEM sites (§V-C) and converge again before the cleaning.
   const Metric centroids = is_anisotropic(options.metric) ? Metric::A : Metric::I;
   ClusterState state = make_cluster_state(items, labels, cluster_count, centroids);
-  report.unconstrained_loops = run_clustering_loops(mesh, items, labels, state, pass, report);
+  // The clusters whose boundaries the next pass must test: the constrained pass goes on where
+  // the unconstrained one stopped (at stop_fraction), so it starts from those the last loop
+  // changed, those the cleaning changed and those whose site the rebuilt sums moved; the
+  // others are stable. (Starting from every cluster cost a full sweep: dragon ×9 → 300k, I,
+  // 0.19 s of 1.2 s.)
+  std::vector<uint8_t> unsettled;
+  report.unconstrained_loops = run_clustering_loops(mesh, items, labels, state, pass, report, {}, &unsettled);
   if (uses_quadrics(options.metric)) {
     state = solved_cluster_state(items, labels, cluster_count, options);
-    report.unconstrained_loops += run_clustering_loops(mesh, items, labels, state, pass, report);
+    report.unconstrained_loops += run_clustering_loops(mesh, items, labels, state, pass, report, {}, &unsettled);
   }
-  clean_clusters(mesh, items, labels, cluster_count, report, pass.storage ? *pass.storage : ram_storage());
+  clean_clusters(mesh, items, labels, cluster_count, report, pass.storage ? *pass.storage : ram_storage(), &unsettled);
   // Incremental sums drift: rebuild them before the constrained pass (DESIGN.md §3).
+  const std::vector<double> sites_before = cluster_sites(items, state);
   state = solved_cluster_state(items, labels, cluster_count, options);
+  mark_moved_sites(sites_before, cluster_sites(items, state), items.total_area, unsettled);
   pass.constrained = true;
   pass.stop_fraction = 0.0;
-  report.constrained_loops = run_clustering_loops(mesh, items, labels, state, pass, report);
+  report.constrained_loops = run_clustering_loops(mesh, items, labels, state, pass, report, unsettled);
   report.metric = state.metric;
   report.final_energy = state_energy(items, state);
   return report;

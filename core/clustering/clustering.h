@@ -113,20 +113,25 @@ ClusterState solved_cluster_state(const ItemData& items, std::span<const int32_t
 /// cluster connected, checked on the vertex's 1-ring). Each committed move strictly lowers the
 /// energy at the current sites; Q-metric sites of changed clusters are re-solved between loops.
 /// `initially_active` (size K, or empty = all) marks the clusters whose boundaries need
-/// testing; the others are known stable. Appends to `report`; returns loops run. On
-/// options.threads threads (one code path: a single thread visits the regions in turn);
-/// defined in parallel_clustering.cpp.
+/// testing; the others are known stable. `unsettled`, when given, is set to the clusters (size
+/// K) the last loop changed, whose boundaries no loop has tested since (none when the pass
+/// converged): the initially_active of a pass that goes on from here. Appends to `report`;
+/// returns loops run. On options.threads threads (one code path: a single thread visits the
+/// regions in turn); defined in parallel_clustering.cpp.
 uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                               ClusterState& state, const LoopOptions& options, ClusteringReport& report,
-                              std::span<const uint8_t> initially_active = {});
+                              std::span<const uint8_t> initially_active = {},
+                              std::vector<uint8_t>* unsettled = nullptr);
 
 /// Cleaning step (§VI-B, Fig. 6): frees every piece of a cluster but its heaviest connected
 /// one (the first in vertex order on a tie), then gives each freed vertex to a neighbouring
 /// region (absorb_free_vertices). Pieces by the chunk-wise union-find, in parallel over chunks;
 /// one component id per vertex from `storage`. Returns the number of vertices reset; counts
-/// disconnected clusters into `report`. Deterministic.
+/// disconnected clusters into `report`; sets changed[c] (when given, size K) for each cluster
+/// that lost or gained a vertex. Deterministic.
 uint64_t clean_clusters(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
-                        uint32_t cluster_count, ClusteringReport& report, ArrayStorage& storage = ram_storage());
+                        uint32_t cluster_count, ClusteringReport& report, ArrayStorage& storage = ram_storage(),
+                        std::vector<uint8_t>* changed = nullptr);
 
 /// True when every cluster's vertices form one connected piece of the mesh graph. Chunk-wise
 /// union-find: memory of one chunk per thread plus the frontiers.

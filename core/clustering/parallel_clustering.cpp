@@ -108,7 +108,8 @@ class ParallelLoop {
     if (!options.deterministic) locks_ = std::vector<ClusterLock>(K_);
   }
 
-  uint32_t run(ClusteringReport& report, std::span<const uint8_t> initially_active, uint32_t threads);
+  uint32_t run(ClusteringReport& report, std::span<const uint8_t> initially_active, uint32_t threads,
+               std::vector<uint8_t>* unsettled);
 
  private:
   MoveDelta delta(uint32_t item, int32_t from, int32_t to) const {
@@ -376,7 +377,7 @@ void ParallelLoop<kAniso, kOffsets>::rebucket(size_t target) {
 
 template <bool kAniso, bool kOffsets>
 uint32_t ParallelLoop<kAniso, kOffsets>::run(ClusteringReport& report, std::span<const uint8_t> initially_active,
-                                            uint32_t threads) {
+                                            uint32_t threads, std::vector<uint8_t>* unsettled) {
   const uint32_t V = mesh_.vertex_count();
   const auto t0 = std::chrono::steady_clock::now();
   // Region size: several regions per thread for load balance; in deterministic mode a function
@@ -422,6 +423,7 @@ uint32_t ParallelLoop<kAniso, kOffsets>::run(ClusteringReport& report, std::span
   uint32_t rounds = 0;
   phase_base_ = 2;  // deterministic stamps: 0 stable, 1 initially active, then phase_base_ + sweep
   uint32_t previous_round_start = 1;
+  uint64_t last_moves = 0;
   for (; rounds < options_.max_loops;) {
     ++rounds;
     const uint32_t round_start = options_.deterministic ? phase_base_ : clock_.load(std::memory_order_relaxed);
@@ -462,7 +464,14 @@ uint32_t ParallelLoop<kAniso, kOffsets>::run(ClusteringReport& report, std::span
     report.seconds_per_loop.push_back(seconds_since(t0));
     if (options_.on_loop) options_.on_loop(options_.constrained, rounds, moves);
     previous_round_start = round_start;
+    last_moves = moves;
     if (moves == 0 || double(moves) < options_.stop_fraction * double(V)) break;
+  }
+  if (unsettled) {  // the clusters the last round changed: their boundaries were not tested since
+    unsettled->assign(K_, 0);
+    if (last_moves > 0)
+      for (uint32_t c = 0; c < K_; ++c)
+        (*unsettled)[c] = changed_in_[c].load(std::memory_order_relaxed) >= previous_round_start;
   }
   return rounds;
 }
@@ -470,17 +479,17 @@ uint32_t ParallelLoop<kAniso, kOffsets>::run(ClusteringReport& report, std::span
 template <bool kAniso, bool kOffsets>
 uint32_t run_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels, ClusterState& state,
                    const LoopOptions& options, ClusteringReport& report, std::span<const uint8_t> initially_active,
-                   uint32_t threads) {
+                   uint32_t threads, std::vector<uint8_t>* unsettled) {
   ParallelLoop<kAniso, kOffsets> loop(mesh, items, labels, state, options,
                                       options.storage ? *options.storage : ram_storage());
-  return loop.run(report, initially_active, threads);
+  return loop.run(report, initially_active, threads, unsettled);
 }
 
 }  // namespace
 
 uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::span<int32_t> labels,
                               ClusterState& state, const LoopOptions& options, ClusteringReport& report,
-                              std::span<const uint8_t> initially_active) {
+                              std::span<const uint8_t> initially_active, std::vector<uint8_t>* unsettled) {
   const uint32_t threads = clustering_thread_count(options.threads);
   tbb::task_arena arena(int(std::min<uint32_t>(threads, 4096)));
   const ScatteredReads scattered(mesh);  // after the first round only candidates' pages are read
@@ -489,11 +498,15 @@ uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::
   arena.execute([&] {
     const bool aniso = !state.aniso.empty(), offsets = state.use_offsets;
     if (aniso)
-      loops = offsets ? run_loops<true, true>(mesh, items, labels, state, options, report, initially_active, threads)
-                      : run_loops<true, false>(mesh, items, labels, state, options, report, initially_active, threads);
+      loops = offsets ? run_loops<true, true>(mesh, items, labels, state, options, report, initially_active, threads,
+                                              unsettled)
+                      : run_loops<true, false>(mesh, items, labels, state, options, report, initially_active, threads,
+                                               unsettled);
     else
-      loops = offsets ? run_loops<false, true>(mesh, items, labels, state, options, report, initially_active, threads)
-                      : run_loops<false, false>(mesh, items, labels, state, options, report, initially_active, threads);
+      loops = offsets ? run_loops<false, true>(mesh, items, labels, state, options, report, initially_active, threads,
+                                               unsettled)
+                      : run_loops<false, false>(mesh, items, labels, state, options, report, initially_active, threads,
+                                                unsettled);
   });
   return loops;
 }

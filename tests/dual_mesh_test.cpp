@@ -15,6 +15,7 @@
 
 #include "streamcvd/core/clustering/clustering.h"
 #include "streamcvd/core/clustering/item_data.h"
+#include "streamcvd/core/dual/placement.h"
 #include "streamcvd/core/measure/mesh_stats.h"
 #include "streamcvd/core/measure/shapes.h"
 #include "streamcvd/streaming/store/store.h"
@@ -322,6 +323,34 @@ TEST(DualMesh, ConvergedClusteringOfASphereGivesAClosedManifold) {
   EXPECT_EQ(t.duplicate_faces, 0u);
   EXPECT_EQ(t.isolated_vertices, 0u);
   EXPECT_TRUE(find_manifold_defects(d.mesh.view()).empty());
+}
+
+// project_onto_clusters with a selection: the selected sites move exactly where the full
+// projection puts them (onto the unit sphere, from inside it), the others stay.
+TEST(DualMesh, ProjectionOfSelectedClustersMatchesTheFullOne) {
+  MeshBuffers sphere = make_icosphere(4);
+  MeshStore store = MeshStore::build(sphere.view());
+  MeshView view = store.view();
+  ItemData items = compute_item_data(view);
+  const uint32_t K = 120;
+  ComponentBudget b = plan_component_budget(view, items, K, SmallComponents::Keep, ram_storage());
+  std::vector<int32_t> labels = test::to_vector(initial_sampling(view, items, b, 17, ram_storage()));
+  minimize_clustering(view, items, labels, K, test::metric_i_one_thread());
+  std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
+  std::vector<double> centroids(3 * K);
+  for (uint32_t c = 0; c < K; ++c)
+    for (int k = 0; k < 3; ++k) centroids[3 * c + k] = items.origin[k] + sums[c].sum[k] / sums[c].weight;
+  std::vector<double> all = centroids, some = centroids;
+  project_onto_clusters(view, labels, all);
+  std::vector<uint8_t> selected(K, 0);
+  for (uint32_t c = 0; c < K; c += 3) selected[c] = 1;
+  project_onto_clusters(view, labels, some, selected);
+  for (uint32_t c = 0; c < K; ++c) {
+    const double r = std::sqrt(all[3 * c] * all[3 * c] + all[3 * c + 1] * all[3 * c + 1] + all[3 * c + 2] * all[3 * c + 2]);
+    EXPECT_NEAR(r, 1.0, 2e-3) << c;  // on the icosphere's faces
+    for (int k = 0; k < 3; ++k)
+      EXPECT_EQ(some[3 * c + k], selected[c] ? all[3 * c + k] : centroids[3 * c + k]) << c;
+  }
 }
 
 // --- find_manifold_defects -----------------------------------------------------------------------

@@ -21,7 +21,10 @@
 #include "streamcvd/core/fields/metric_field.h"
 #include "streamcvd/core/remesh.h"
 #include "streamcvd/core/measure/shapes.h"
+#include "streamcvd/core/mesh/bvh.h"
 #include "streamcvd/core/mesh/subdivide.h"
+#include "streamcvd/core/mesh/triangle_quality.h"
+#include "streamcvd/core/mesh/vec3.h"
 #include "streamcvd/core/measure/surface_distance.h"
 #include "streamcvd/streaming/io/mesh_io.h"
 #include "streamcvd/streaming/store/store.h"
@@ -113,6 +116,27 @@ double nearest_vertex_distance(const V3& p, const MeshBuffers& out) {
 }
 
 MeshBuffers fandisk() { return read_mesh(test::data_path("cgal_fandisk.off.zst")); }
+
+// QEM sites of the hand at 5,000 (one thread) make needle triangles: the sites of their corners
+// fall back to their projected centroids, which are projected only then (revert_needle_sites).
+TEST(MetricAcceptance, NeedleTrianglesOfQemSitesFallBackToProjectedCentroids) {
+  const MeshBuffers hand = read_mesh(test::data_path("cgal_hand.off"));
+  const Remeshed r = run(hand, Metric::IQ, 5000);
+  EXPECT_GT(r.result.placement.sites_reverted, 0u);
+  const MeshBuffers& out = r.result.mesh;
+  double worst = 1;
+  for (uint64_t f = 0; f < out.face_count(); ++f) {
+    const uint32_t* t = &out.triangles[3 * f];
+    worst = std::min(worst, triangle_quality(vec3::point(out.positions, t[0]), vec3::point(out.positions, t[1]),
+                                             vec3::point(out.positions, t[2])));
+  }
+  EXPECT_GE(worst, 1e-4);
+  // Every output vertex lies near the input (QEM sites within their clusters, fallbacks on the
+  // surface; a fallback left unprojected or unset would not): 0.16 % of the diagonal at most.
+  const double diagonal = bounding_box_diagonal(hand.view());
+  const OneSidedDistance d = one_sided_distance(out.positions, build_triangle_bvh(hand.view()));
+  EXPECT_LT(d.max / diagonal, 5e-3);
+}
 
 TEST(MetricAcceptance, FandiskHausdorffLowerWithIQThanWithI) {
   const MeshBuffers input = fandisk();

@@ -70,7 +70,8 @@ uint32_t cluster_count_of(std::span<const int32_t> cluster_of_output_vertex) {
 
 }  // namespace
 
-void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels, std::span<double> z) {
+void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels, std::span<double> z,
+                           std::span<const uint8_t> selected) {
   const size_t K = z.size() / 3;
   std::vector<uint64_t> best(K, kNoCandidate);  // (distance, face) of the closest triangle
   const float* P = mesh.positions.data();
@@ -93,6 +94,7 @@ void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels
       for (int k = 0; k < 3; ++k) {
         const int32_t c = l[k];
         if (c < 0 || (k > 0 && c == l[0]) || (k > 1 && c == l[1])) continue;  // each cluster once
+        if (!selected.empty() && !selected[size_t(c)]) continue;
         const std::array<double, 3> z_c = site(size_t(c));
         // A face farther than the best found so far cannot be the closest: skip the exact test
         // (strictly farther, with a margin for rounding, so the minimum found is the same).

@@ -16,8 +16,11 @@ namespace streamcvd {
 /// Moves each cluster's site z[3c..3c+2] to the closest point of the input surface among the
 /// triangles having a corner in the cluster (centroids of curved clusters lie off the surface).
 /// The closest triangle is the one of least (float32 distance, face id), so ties are broken the
-/// same on any thread count. O(V + F) work, parallel; K-sized scratch (8 bytes per cluster).
-void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels, std::span<double> z);
+/// same on any thread count. `selected` (size K, or empty = all) limits it to the clusters
+/// marked; the others' sites are left as they are. O(V + F) work, parallel; K-sized scratch
+/// (8 bytes per cluster).
+void project_onto_clusters(const MeshView& mesh, std::span<const int32_t> labels, std::span<double> z,
+                           std::span<const uint8_t> selected = {});
 
 /// For each output vertex of a clustering's dual, an input face near it to start the projection
 /// walk from: a face of the input vertex of its cluster closest to it (least (float32 squared

@@ -300,22 +300,30 @@ TEST(DualMesh, DiscSectorsAroundACentreGiveAFlatOrientedDisc) {
   EXPECT_TRUE(find_manifold_defects(d.mesh.view()).empty());
 }
 
+// A converged metric-I clustering of a uniform sphere (icosphere level 4, K = 120, seed 17) and
+// its clusters' centroids, 3 doubles each.
+struct SphereClustering {
+  static constexpr uint32_t K = 120;
+  MeshStore store = MeshStore::build(make_icosphere(4).view());
+  MeshView view = store.view();
+  std::vector<int32_t> labels;
+  std::vector<double> centroids = std::vector<double>(3 * K);
+  SphereClustering() {
+    const ItemData items = compute_item_data(view);
+    const ComponentBudget b = plan_component_budget(view, items, K, SmallComponents::Keep, ram_storage());
+    labels = test::to_vector(initial_sampling(view, items, b, 17, ram_storage()));
+    minimize_clustering(view, items, labels, K, test::metric_i_one_thread());
+    const std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
+    for (uint32_t c = 0; c < K; ++c)
+      for (int k = 0; k < 3; ++k) centroids[3 * c + k] = items.origin[k] + sums[c].sum[k] / sums[c].weight;
+  }
+};
+
 TEST(DualMesh, ConvergedClusteringOfASphereGivesAClosedManifold) {
   // End to end without repair: the clustering of a uniform sphere should already dualise cleanly.
-  MeshBuffers sphere = make_icosphere(4);
-  MeshStore store = MeshStore::build(sphere.view());
-  MeshView view = store.view();
-  ItemData items = compute_item_data(view);
-  const uint32_t K = 120;
-  ComponentBudget b = plan_component_budget(view, items, K, SmallComponents::Keep, ram_storage());
-  std::vector<int32_t> labels = test::to_vector(initial_sampling(view, items, b, 17, ram_storage()));
-  minimize_clustering(view, items, labels, K, test::metric_i_one_thread());
-  std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
-  std::vector<double> z(3 * K);
-  for (uint32_t c = 0; c < K; ++c)
-    for (int k = 0; k < 3; ++k) z[3 * c + k] = items.origin[k] + sums[c].sum[k] / sums[c].weight;
-  DualMesh d = build_dual_mesh(view, labels, K, z);
-  EXPECT_EQ(d.mesh.vertex_count(), K);
+  const SphereClustering s;
+  DualMesh d = build_dual_mesh(s.view, s.labels, s.K, s.centroids);
+  EXPECT_EQ(d.mesh.vertex_count(), s.K);
   TopologyStats t = compute_topology_stats(d.mesh.view());
   EXPECT_TRUE(t.closed_manifold);
   EXPECT_TRUE(t.consistently_oriented);
@@ -328,28 +336,17 @@ TEST(DualMesh, ConvergedClusteringOfASphereGivesAClosedManifold) {
 // project_onto_clusters with a selection: the selected sites move exactly where the full
 // projection puts them (onto the unit sphere, from inside it), the others stay.
 TEST(DualMesh, ProjectionOfSelectedClustersMatchesTheFullOne) {
-  MeshBuffers sphere = make_icosphere(4);
-  MeshStore store = MeshStore::build(sphere.view());
-  MeshView view = store.view();
-  ItemData items = compute_item_data(view);
-  const uint32_t K = 120;
-  ComponentBudget b = plan_component_budget(view, items, K, SmallComponents::Keep, ram_storage());
-  std::vector<int32_t> labels = test::to_vector(initial_sampling(view, items, b, 17, ram_storage()));
-  minimize_clustering(view, items, labels, K, test::metric_i_one_thread());
-  std::vector<ClusterSums> sums = accumulate_clusters(items, labels, K);
-  std::vector<double> centroids(3 * K);
-  for (uint32_t c = 0; c < K; ++c)
-    for (int k = 0; k < 3; ++k) centroids[3 * c + k] = items.origin[k] + sums[c].sum[k] / sums[c].weight;
-  std::vector<double> all = centroids, some = centroids;
-  project_onto_clusters(view, labels, all);
-  std::vector<uint8_t> selected(K, 0);
-  for (uint32_t c = 0; c < K; c += 3) selected[c] = 1;
-  project_onto_clusters(view, labels, some, selected);
-  for (uint32_t c = 0; c < K; ++c) {
+  const SphereClustering s;
+  std::vector<double> all = s.centroids, some = s.centroids;
+  project_onto_clusters(s.view, s.labels, all);
+  std::vector<uint8_t> selected(s.K, 0);
+  for (uint32_t c = 0; c < s.K; c += 3) selected[c] = 1;
+  project_onto_clusters(s.view, s.labels, some, selected);
+  for (uint32_t c = 0; c < s.K; ++c) {
     const double r = std::sqrt(all[3 * c] * all[3 * c] + all[3 * c + 1] * all[3 * c + 1] + all[3 * c + 2] * all[3 * c + 2]);
     EXPECT_NEAR(r, 1.0, 2e-3) << c;  // on the icosphere's faces
     for (int k = 0; k < 3; ++k)
-      EXPECT_EQ(some[3 * c + k], selected[c] ? all[3 * c + k] : centroids[3 * c + k]) << c;
+      EXPECT_EQ(some[3 * c + k], selected[c] ? all[3 * c + k] : s.centroids[3 * c + k]) << c;
   }
 }
 

@@ -34,8 +34,9 @@ struct ItemData {
 
 /// Visits the barycentric dual cell of vertex v face by face: fn(cell, pv, pa, pb, x) for each
 /// face (v, a, b) of v in its orientation, with cell = a third of the face's area, the corners in
-/// double relative to `origin` and x = (pa − pv) × (pb − pv), the face's normal of length 2·area. O(deg v), no allocation. The one definition of |P_j| (eq. 10):
-/// the item weights and the area-weighted attribute means (core/mesh/vertex_attributes.h) use it.
+/// double relative to `origin` and x = (pa − pv) × (pb − pv), the face's normal of length
+/// 2·area. O(deg v), no allocation. The one definition of |P_j| (eq. 10): the item weights, the
+/// vertex quadrics and the area-weighted attribute means (core/mesh/vertex_attributes.h) use it.
 template <class Fn>
 inline void for_each_dual_cell_part(const MeshView& mesh, uint32_t v, const double origin[3], const Fn& fn) {
   const float* P = mesh.positions.data();

@@ -103,7 +103,8 @@ std::vector<float> cluster_attribute_means(const MeshView& mesh, std::span<const
           local.sums.resize(local.sums.size() + row, 0.0);
         }
         double area = 0;
-        for_each_dual_cell_part(mesh, v, origin, [&](double cell, const double*, const double*, const double*, const double*) { area += cell; });
+        for_each_dual_cell_part(mesh, v, origin, [&](double cell, const double*, const double*, const double*,
+                                                     const double*) { area += cell; });
         double* sum = &local.sums[size_t(slot) * row];
         sum[0] += area;
         const float* x = values + size_t(v) * stride;

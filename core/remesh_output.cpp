@@ -38,10 +38,12 @@ uint64_t revert_needle_sites(Job& job, const Clusters& c, DualMesh& dual, std::v
   uint64_t reverted = 0;
   const size_t K = z.size() / 3;
   std::vector<uint8_t> done(K, 0), projected(K, 0), wanted(K, 0);
+  auto site = [](const std::vector<double>& xyz, int32_t c) {
+    return vec3::Vec3{xyz[3 * size_t(c)], xyz[3 * size_t(c) + 1], xyz[3 * size_t(c) + 2]};
+  };
   auto moved2 = [&](int32_t c) {
-    double d2 = 0;
-    for (int i = 0; i < 3; ++i) d2 += (z[3 * size_t(c) + i] - fallback[3 * size_t(c) + i]) * (z[3 * size_t(c) + i] - fallback[3 * size_t(c) + i]);
-    return d2;
+    const vec3::Vec3 d = vec3::sub(site(z, c), site(fallback, c));
+    return vec3::dot(d, d);
   };
   const auto& tri = dual.mesh.triangles;
   std::vector<size_t> needles;

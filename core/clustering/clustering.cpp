@@ -5,6 +5,7 @@
 
 #include <cctype>
 #include <cmath>
+#include <numbers>
 #include <string>
 
 #include "streamcvd/core/clustering/parallel_clustering.h"
@@ -44,7 +45,7 @@ namespace {
 void mark_moved_sites(std::span<const double> before, std::span<const double> after, double area,
                       std::vector<uint8_t>& marks) {
   const size_t K = marks.size();
-  const double radius = K > 0 ? std::sqrt(area / (double(K) * 3.141592653589793)) : 0.0;
+  const double radius = K > 0 ? std::sqrt(area / (double(K) * std::numbers::pi)) : 0.0;
   const double tolerance2 = 1e-12 * radius * radius;
   for (size_t c = 0; c < K; ++c) {
     const double dx = after[3 * c] - before[3 * c], dy = after[3 * c + 1] - before[3 * c + 1],

@@ -213,7 +213,10 @@ TEST(PageAdvice, WillNeedReadsTheWholeRange) {
   size_t n = 0;
   for (int i = 0; i < 200 && (n = resident_pages()) < resident.size(); ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  EXPECT_EQ(n, resident.size());
+  // Read-ahead is best effort: under memory pressure (CI runs tests side by side) the kernel may
+  // skip or evict a piece, so a few pages may be missing. One call over the range reads only the
+  // first window (at most a few MiB of the 48), which this bound still tells apart.
+  EXPECT_GE(n, resident.size() * 9 / 10);
   ::munmap(data, bytes);
   fs::remove(file);
 }

@@ -8,6 +8,7 @@
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <iterator>
 #include <numeric>
@@ -22,6 +23,25 @@ namespace {
 
 // The pair {a, b} of two distinct ids, packed smaller first (a << 32 | b for a < b).
 inline uint64_t pair_key(uint32_t a, uint32_t b) { return uint64_t(std::min(a, b)) << 32 | std::max(a, b); }
+
+// Drops most repeats of a pair before a list of pairs is sorted: a pair of clusters repeats
+// along their whole frontier, once per edge or face there. A direct-mapped table of the last
+// pairs seen; the list is sort_unique'd afterwards as before, so the result is the same
+// (dragon ×9 → 300,000: the pairs' sorts took 2.8 % of the run's samples).
+class RecentPairs {
+ public:
+  RecentPairs() { slots_.fill(~uint64_t(0)); }  // no pair of ids below 2^31 has all bits set
+  /// Whether `key` is not among the recent pairs (it is now). O(1).
+  bool fresh(uint64_t key) {
+    uint64_t& slot = slots_[(key * 0x9E3779B97F4A7C15ull) >> 56];
+    if (slot == key) return false;
+    slot = key;
+    return true;
+  }
+
+ private:
+  std::array<uint64_t, 256> slots_;
+};
 
 // sort_unique with a parallel sort, for the merged lists (D-sized).
 template <class T>
@@ -101,10 +121,12 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, b
       emitted[i] = out.size();
       if (neighbour_pairs) {  // every input edge is an edge of a face: the faces give them all
         std::vector<uint64_t>& p = pairs[i];
+        RecentPairs recent;
         for (uint64_t f = blocks[i].begin; f < blocks[i].end; ++f)
           for (int k = 0; k < 3; ++k) {
             const int32_t a = labels[T[3 * f + k]], b = labels[T[3 * f + (k + 1) % 3]];
-            if (a >= 0 && b >= 0 && a != b) p.push_back(pair_key(uint32_t(a), uint32_t(b)));
+            if (a < 0 || b < 0 || a == b) continue;
+            if (const uint64_t key = pair_key(uint32_t(a), uint32_t(b)); recent.fresh(key)) p.push_back(key);
           }
         sort_unique(p);
       }
@@ -184,11 +206,14 @@ std::vector<uint64_t> neighbour_pairs_around(const MeshView& mesh, std::span<con
   tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t b = r.begin(); b != r.end(); ++b) {
       std::vector<uint64_t>& out = found[b];
+      RecentPairs recent;
       for (size_t i = b * kBlock; i < std::min(vertices.size(), (b + 1) * kBlock); ++i) {
         const int32_t a = labels[vertices[i]];
         if (a < 0) continue;
-        for (uint32_t n : mesh.neighbours(vertices[i]))
-          if (labels[n] >= 0 && labels[n] != a) out.push_back(pair_key(uint32_t(a), uint32_t(labels[n])));
+        for (uint32_t n : mesh.neighbours(vertices[i])) {
+          if (labels[n] < 0 || labels[n] == a) continue;
+          if (const uint64_t key = pair_key(uint32_t(a), uint32_t(labels[n])); recent.fresh(key)) out.push_back(key);
+        }
       }
       sort_unique(out);  // a pair repeats along a whole frontier
     }

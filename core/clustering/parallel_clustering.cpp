@@ -496,17 +496,16 @@ uint32_t run_clustering_loops(const MeshView& mesh, const ItemData& items, std::
   uint32_t loops = 0;
   tls_threads = threads;
   arena.execute([&] {
+    // One instantiation per (anisotropic, Q offsets) pair, chosen from the state.
+    auto run = [&]<bool kAniso, bool kOffsets>() {
+      return run_loops<kAniso, kOffsets>(mesh, items, labels, state, options, report, initially_active, threads,
+                                         unsettled);
+    };
     const bool aniso = !state.aniso.empty(), offsets = state.use_offsets;
     if (aniso)
-      loops = offsets ? run_loops<true, true>(mesh, items, labels, state, options, report, initially_active, threads,
-                                              unsettled)
-                      : run_loops<true, false>(mesh, items, labels, state, options, report, initially_active, threads,
-                                               unsettled);
+      loops = offsets ? run.operator()<true, true>() : run.operator()<true, false>();
     else
-      loops = offsets ? run_loops<false, true>(mesh, items, labels, state, options, report, initially_active, threads,
-                                               unsettled)
-                      : run_loops<false, false>(mesh, items, labels, state, options, report, initially_active, threads,
-                                                unsettled);
+      loops = offsets ? run.operator()<false, true>() : run.operator()<false, false>();
   });
   return loops;
 }

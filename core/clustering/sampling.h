@@ -69,7 +69,7 @@ ComponentBudget plan_component_budget(const MeshView& mesh, const ItemData& item
 /// one that would cut its cluster). Free vertices are then absorbed (absorb_free_vertices).
 /// Returns labels (V entries from `storage`) in [0, budget.total_clusters), −1 only for isolated
 /// vertices and vertices of components without clusters; every cluster is non-empty and
-/// connected. Labels are numbered by range, then by seed order inside the range.
+/// connected. Labels are numbered by range, then by first vertex inside the range (store order).
 /// Memory: the labels, plus one range's scratch per thread (~32 bytes per vertex of the largest
 /// range, at most 2^20 vertices) and K-sized tables. O(V + E), TBB-parallel over ranges; the labels depend only on the
 /// mesh, the items, the budget and the seed (not on the thread count or the storage).

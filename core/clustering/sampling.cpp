@@ -201,7 +201,7 @@ void sample_range(const MeshView& mesh, std::span<const double> weight, std::spa
 // vertex in store order. The seeds come in random order, so their ids were scattered over the
 // range; numbered along the Hilbert order, neighbouring clusters get near ids, and every later
 // pass indexed by cluster (the clustering's sums, the dual, the repair, the quality pass over
-// output vertices) reads nearby memory (dragon ×9 → 300,000, I: 4.07 → 3.74 s, the quality pass
+// output vertices) reads nearby memory (dragon ×9 → 300,000, I: 4.06 → 3.69 s, the quality pass
 // 0.82 → 0.61 s, same Qav). O(range + count); `map` is the caller's scratch.
 void number_clusters_in_store_order(VertexRange r, int32_t first_label, size_t count, std::span<int32_t> label,
                                     std::vector<int32_t>& map) {

@@ -258,9 +258,9 @@ std::vector<int32_t> ClusterRepair::round(std::span<const int32_t> defect_cluste
     // are merged lightest first while ids are still needed.
     auto merge_light_pairs = [&](std::vector<int32_t>& candidates) {
       // Read in id order: the sampling numbers clusters by their first vertex in store order, so
-      // ascending ids walk the store (and the member index) forwards and each page is read once. In weight order the
-      // reads jump across the whole mesh: out of core, a 105M-face store at 2 GiB re-read its
-      // pages for every candidate (repair 186 s instead of 31 s).
+      // ascending ids walk the store (and the member index) forwards and each page is read once.
+      // In weight order the reads jump across the whole mesh: out of core, a 105M-face store at
+      // 2 GiB re-read its pages for every candidate (repair 186 s instead of 31 s).
       std::sort(candidates.begin(), candidates.end());
       for (int32_t a : candidates) {  // each proposes its lightest compensable neighbour
         std::vector<int32_t>& around = round_neighbours_[a];

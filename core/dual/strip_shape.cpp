@@ -307,8 +307,8 @@ void boundary_neighbours(std::span<const uint32_t> T, std::span<const uint32_t> 
   tbb::enumerable_thread_specific<std::vector<uint32_t>> scratch;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, vertices.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
     std::vector<uint32_t>& ends = scratch.local();
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      const uint32_t v = vertices[i];
+    for (size_t at = r.begin(); at != r.end(); ++at) {
+      const uint32_t v = vertices[at];
       ends.clear();
       for (uint32_t i = vf_offsets[v]; i < vf_offsets[v + 1]; ++i) {
         const uint32_t f = vf[i];

@@ -304,10 +304,10 @@ void pair_edge(const Faces& fs, uint32_t a, uint32_t b, std::span<const uint32_t
   // double layer), whose order about the edge is noise. Paired with the chirality rule, that
   // order would choose, edge by edge, which copy continues the surface, and a copy attached
   // along some of its edges and not others opens a hole at each change (crude dragon
-  // subdivided 10×10: 2,384 boundary loops after the cleaning, 18 for the crude mesh itself). Paired with each other (the closest first) they
-  // become a thin closed piece of their own, as the double-layer rule drops a face and its exact
-  // reverse whole; this holds when the other faces then pair up completely, else the edge is
-  // paired as a whole.
+  // subdivided 10×10: 2,384 boundary loops after the cleaning, 18 for the crude mesh itself).
+  // Paired with each other (the closest first) they become a thin closed piece of their own, as
+  // the double-layer rule drops a face and its exact reverse whole; this holds when the other
+  // faces then pair up completely, else the edge is paired as a whole.
   bool layered = false;
   for (;;) {
     size_t best = k;

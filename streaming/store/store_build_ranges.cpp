@@ -303,6 +303,7 @@ void RangePass::local_adjacency(uint32_t) {
 // face ids.
 void RangePass::screen_topology() {
   using Screen = StoreBuildReport::TopologyScreen;
+  constexpr uint64_t kSmallFan = 16;
   const uint32_t* tri = a_->tri.data();
   auto corners = [&](uint32_t f) { return topology::vertex_set(tri[3 * f], tri[3 * f + 1], tri[3 * f + 2]); };
   const Screen found = tbb::parallel_reduce(
@@ -314,10 +315,21 @@ void RangePass::screen_topology() {
           // Two faces running the same edge v → w the same way: misoriented (counted at v), found
           // as equal corners after v among its faces.
           const uint64_t b = a_->vf_off[v], e = a_->vf_off[v + 1];
-          next.clear();
-          for (uint64_t i = b; i < e; ++i) next.push_back(topology::next_corner(&tri[3 * size_t(a_->vf[i])], vb_ + v));
-          std::sort(next.begin(), next.end());
-          for (size_t i = 1; i < next.size(); ++i) sc.misoriented_edges += next[i] == next[i - 1];
+          // The next corners in a stack array for the usual vertex, in `next` for a large fan.
+          uint32_t small[kSmallFan];
+          if (e - b > kSmallFan) next.resize(e - b);
+          uint32_t* corner = e - b > kSmallFan ? next.data() : small;
+          for (uint64_t i = b; i < e; ++i) corner[i - b] = topology::next_corner(&tri[3 * size_t(a_->vf[i])], vb_ + v);
+          if (e - b <= kSmallFan) {  // each corner with an equal one before it: the sorted count, no sort
+            for (uint64_t i = 1; i < e - b; ++i) {
+              bool seen = false;
+              for (uint64_t j = 0; j < i; ++j) seen |= corner[j] == corner[i];
+              sc.misoriented_edges += seen;
+            }
+          } else {
+            std::sort(next.begin(), next.end());
+            for (size_t i = 1; i < next.size(); ++i) sc.misoriented_edges += next[i] == next[i - 1];
+          }
           if (e - b != 2) continue;
           const uint32_t f = a_->vf[a_->vf_off[v]], g = a_->vf[a_->vf_off[v] + 1];
           // Counted once, at the pair's owner (its smallest corner), when both faces are owned here.

@@ -26,7 +26,7 @@ struct ComponentShape {
 };
 
 /// The shape of each input component (ids from component_of_vertex, kNone = UINT32_MAX for
-/// isolated vertices): χ = V − E + F from the CSR degrees and owned faces, loops from `loops`,
+/// isolated vertices): χ = V − E + F from the CSR offsets (degrees and corners), loops from `loops`,
 /// manifold from the vertex flags. O(V + F); one pass in vertex order. Thread-safe (pure).
 std::vector<ComponentShape> input_component_shapes(const MeshView& mesh, std::span<const uint32_t> component_of_vertex,
                                                    uint32_t component_count, const BoundaryLoops& loops);

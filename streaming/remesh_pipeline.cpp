@@ -139,11 +139,14 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
                      " clusters; components too small or too thin for the budget of " +
                      std::to_string(options.remesh.vertices) + " vertices)");
   const auto summary_start = std::chrono::steady_clock::now();
-  // Three independent reads of the input and the output (each mostly serial): side by side.
+  // The input's summary beside the output's figures (their topology and quality side by side).
   tbb::parallel_invoke(
       [&] { result.input = summarize_input(store.view(), result.remesh.budget.clusters_per_component.size()); },
-      [&] { result.output_topology = compute_topology_stats(result.remesh.mesh.view()); },
-      [&] { result.output_quality = compute_quality(result.remesh.mesh.view()); });
+      [&] {
+        MeshFigures output = compute_mesh_figures(result.remesh.mesh.view());
+        result.output_topology = output.topology;
+        result.output_quality = std::move(output.quality);
+      });
   result.summary_seconds = seconds_since(summary_start);
   return result;
 }

@@ -256,6 +256,32 @@ TEST(MeshStats, BoundaryFacesApart) {
   EXPECT_NEAR(closed.q_avg_off_boundary, closed.q_avg, 1e-12);
 }
 
+TEST(MeshStats, FiguresTogetherEqualTheTwoCalls) {
+  // A grid with holes, a bowtie, a repeated face: every figure of both structs must agree.
+  MeshBuffers m = grid_with_holes(9, 7, {{2, 2}, {5, 3}});
+  const uint32_t base = m.vertex_count();
+  for (float x : {10.f, 0.f, 0.f, 11.f, 0.f, 0.f, 10.f, 1.f, 0.f, 9.f, -1.f, 0.f, 9.f, 0.f, 0.f})
+    m.positions.push_back(x);
+  m.triangles.insert(m.triangles.end(), {base, base + 1, base + 2, base, base + 3, base + 4, base, base + 1, base + 2});
+  const MeshFigures both = compute_mesh_figures(m.view());
+  const TopologyStats t = compute_topology_stats(m.view());
+  const QualityStats q = compute_quality(m.view());
+  EXPECT_EQ(both.topology.boundary_loops, t.boundary_loops);
+  EXPECT_EQ(both.topology.components, t.components);
+  EXPECT_EQ(both.topology.nonmanifold_vertices, t.nonmanifold_vertices);
+  EXPECT_GT(t.nonmanifold_vertices, 0u) << "the bowtie";
+  EXPECT_EQ(both.topology.duplicate_faces, t.duplicate_faces);
+  EXPECT_EQ(t.duplicate_faces, 1u);
+  EXPECT_EQ(both.topology.euler_characteristic, t.euler_characteristic);
+  EXPECT_EQ(both.topology.edges, t.edges);
+  EXPECT_EQ(both.quality.q_avg, q.q_avg);
+  EXPECT_EQ(both.quality.q_avg_boundary, q.q_avg_boundary);
+  EXPECT_EQ(both.quality.boundary_triangles, q.boundary_triangles);
+  EXPECT_EQ(both.quality.percent_valence6, q.percent_valence6);
+  EXPECT_EQ(both.quality.edge_length_cv, q.edge_length_cv);
+  EXPECT_EQ(both.quality.q_histogram, q.q_histogram);
+}
+
 TEST(MeshStats, GridBoundaryAndQuality) {
   const int nx = 7, ny = 5;  // unit cells: sizes nx − 1, ny − 1
   const MeshBuffers m = make_grid(nx, ny, float(nx - 1), float(ny - 1));

@@ -29,6 +29,7 @@
 
 #include <oneapi/tbb/blocked_range.h>
 #include <oneapi/tbb/parallel_for.h>
+#include <oneapi/tbb/parallel_invoke.h>
 #include <oneapi/tbb/parallel_reduce.h>
 
 #include <algorithm>
@@ -187,17 +188,30 @@ std::vector<uint8_t> bowtie_vertices(std::span<const uint32_t> tri, uint32_t ver
   return bowtie;
 }
 
-}  // namespace
+// What the topology and the quality figures both start from: the box, the sorted edge uses and
+// the vertex marks.
+struct EdgeTable {
+  Box box;
+  std::vector<EdgeUse> uses;
+  std::vector<uint8_t> mark;
+};
 
-TopologyStats compute_topology_stats(const TriangleSoupView& mesh) {
-  check_soup(mesh, "compute_topology_stats");
+EdgeTable edge_table(const TriangleSoupView& mesh) {
+  EdgeTable t;
+  t.box = bounding_box(mesh.positions);
+  t.uses = sorted_edge_uses(mesh.triangles, mesh.vertex_count());
+  t.mark = vertex_marks(mesh.triangles, mesh.vertex_count(), t.uses);
+  return t;
+}
+
+TopologyStats topology_of(const TriangleSoupView& mesh, const EdgeTable& table) {
   TopologyStats s;
   const auto tri = mesh.triangles;
   const uint32_t nv = mesh.vertex_count();
   const uint64_t nf = mesh.face_count();
   s.vertices = nv;
   s.faces = nf;
-  const Box box = bounding_box(mesh.positions);
+  const Box& box = table.box;
   for (int i = 0; i < 3; ++i) s.bbox_min[i] = float(box.lo[i]), s.bbox_max[i] = float(box.hi[i]);
 
   const double eps = zero_area(box);
@@ -209,9 +223,9 @@ TopologyStats compute_topology_stats(const TriangleSoupView& mesh) {
       },
       std::plus<>());
 
-  const std::vector<EdgeUse> uses = sorted_edge_uses(tri, nv);
+  const std::vector<EdgeUse>& uses = table.uses;
   s.duplicate_faces = count_duplicate_faces(tri, uses);
-  const std::vector<uint8_t> mark = vertex_marks(tri, nv, uses);
+  const std::vector<uint8_t>& mark = table.mark;
   bool oriented = true;
   DisjointSets<uint32_t> loops(nv);  // vertices joined by boundary edges
   for (size_t i = 0, j; i < uses.size(); i = j) {
@@ -252,8 +266,6 @@ TopologyStats compute_topology_stats(const TriangleSoupView& mesh) {
   return s;
 }
 
-namespace {
-
 constexpr int kQBins = 20, kAngleBins = 12;
 
 struct QualityAccumulator {
@@ -262,10 +274,19 @@ struct QualityAccumulator {
   double min_angle_sum = 0, min_angle_min = std::numeric_limits<double>::infinity(), max_angle_max = 0;
   std::array<uint64_t, kQBins> q_hist{};
   std::array<uint64_t, kAngleBins> angle_hist{};
+  uint64_t boundary_triangles = 0;  // with a corner on a boundary edge
+  double q_boundary = 0, q_rest = 0, q_min_boundary = std::numeric_limits<double>::infinity();
 
-  void add(double q, const double (&angle)[3]) {
+  void add(double q, const double (&angle)[3], bool on_boundary) {
     const double lo = std::min({angle[0], angle[1], angle[2]}), hi = std::max({angle[0], angle[1], angle[2]});
     ++triangles;
+    if (on_boundary) {
+      ++boundary_triangles;
+      q_boundary += q;
+      q_min_boundary = std::min(q_min_boundary, q);
+    } else {
+      q_rest += q;
+    }
     q_sum += q;
     q_min = std::min(q_min, q);
     min_angle_sum += lo;
@@ -287,6 +308,10 @@ struct QualityAccumulator {
     max_angle_max = std::max(max_angle_max, o.max_angle_max);
     for (int i = 0; i < kQBins; ++i) q_hist[i] += o.q_hist[i];
     for (int i = 0; i < kAngleBins; ++i) angle_hist[i] += o.angle_hist[i];
+    boundary_triangles += o.boundary_triangles;
+    q_boundary += o.q_boundary;
+    q_rest += o.q_rest;
+    q_min_boundary = std::min(q_min_boundary, o.q_min_boundary);
     return *this;
   }
 };
@@ -325,15 +350,15 @@ void face_quality(const TriangleSoupView& m, uint64_t f, double eps, double& q, 
   q = quality_from(0.5 * area2, quality_denominator(len[0], len[1], len[2]));
 }
 
-}  // namespace
-
-QualityStats compute_quality(const TriangleSoupView& mesh) {
-  check_soup(mesh, "compute_quality");
+QualityStats quality_of(const TriangleSoupView& mesh, const EdgeTable& table) {
   QualityStats s;
   const auto tri = mesh.triangles;
   const uint32_t nv = mesh.vertex_count();
   const uint64_t nf = mesh.face_count();
-  const double eps = zero_area(bounding_box(mesh.positions));
+  const double eps = zero_area(table.box);
+  // Distinct edges (lengths, valences) and which vertices are on a boundary edge.
+  const std::vector<EdgeUse>& uses = table.uses;
+  const std::vector<uint8_t>& mark = table.mark;
 
   // Deterministic reduce: fixed split/join tree, so the double sums (and Qav) are bit-identical
   // from run to run and for any thread count (benchmarks compare reruns exactly).
@@ -343,7 +368,7 @@ QualityStats compute_quality(const TriangleSoupView& mesh) {
         for (uint64_t f = r.begin(); f != r.end(); ++f) {
           double q, angle[3];
           face_quality(mesh, f, eps, q, angle);
-          a.add(q, angle);
+          a.add(q, angle, ((mark[tri[3 * f]] | mark[tri[3 * f + 1]] | mark[tri[3 * f + 2]]) & kOnBoundary) != 0);
         }
         return a;
       },
@@ -362,9 +387,7 @@ QualityStats compute_quality(const TriangleSoupView& mesh) {
     s.percent_triangles_below_30 = 100.0 * double(acc.triangles_below_30) / n;
   }
 
-  // Distinct edges: lengths, and valence (distinct neighbours) of every vertex.
-  const std::vector<EdgeUse> uses = sorted_edge_uses(tri, nv);
-  const std::vector<uint8_t> mark = vertex_marks(tri, nv, uses);
+  // Edge lengths, and the valence (distinct neighbours) of every vertex.
   std::vector<uint32_t> valence(nv, 0);
   // Lengths are accumulated relative to the first edge's so the variance does not cancel out.
   double shift = -1, length_sum = 0, length_sum2 = 0;
@@ -399,24 +422,36 @@ QualityStats compute_quality(const TriangleSoupView& mesh) {
       regular += valence[v] == 6;
     }
   if (interior > 0) s.percent_valence6 = 100.0 * double(regular) / double(interior);
-  // Boundary faces apart (serial, in face order: the sums are the same on every run).
-  double q_boundary = 0, q_rest = 0;
-  s.q_min_boundary = std::numeric_limits<double>::infinity();
-  for (uint64_t f = 0; f < nf; ++f) {
-    double q, angle[3];
-    face_quality(mesh, f, eps, q, angle);
-    if ((mark[tri[3 * f]] | mark[tri[3 * f + 1]] | mark[tri[3 * f + 2]]) & kOnBoundary) {
-      ++s.boundary_triangles;
-      q_boundary += q;
-      s.q_min_boundary = std::min(s.q_min_boundary, q);
-    } else {
-      q_rest += q;
-    }
+  // Boundary faces apart (summed in the deterministic reduce: the same on every run).
+  s.boundary_triangles = acc.boundary_triangles;
+  if (s.boundary_triangles > 0) {
+    s.q_min_boundary = acc.q_min_boundary;
+    s.q_avg_boundary = acc.q_boundary / double(s.boundary_triangles);
   }
-  if (s.boundary_triangles == 0) s.q_min_boundary = 0;
-  if (s.boundary_triangles > 0) s.q_avg_boundary = q_boundary / double(s.boundary_triangles);
-  if (s.triangles > s.boundary_triangles) s.q_avg_off_boundary = q_rest / double(s.triangles - s.boundary_triangles);
+  if (s.triangles > s.boundary_triangles)
+    s.q_avg_off_boundary = acc.q_rest / double(s.triangles - s.boundary_triangles);
   return s;
+}
+
+}  // namespace
+
+TopologyStats compute_topology_stats(const TriangleSoupView& mesh) {
+  check_soup(mesh, "compute_topology_stats");
+  return topology_of(mesh, edge_table(mesh));
+}
+
+QualityStats compute_quality(const TriangleSoupView& mesh) {
+  check_soup(mesh, "compute_quality");
+  return quality_of(mesh, edge_table(mesh));
+}
+
+MeshFigures compute_mesh_figures(const TriangleSoupView& mesh) {
+  check_soup(mesh, "compute_mesh_figures");
+  const EdgeTable table = edge_table(mesh);
+  MeshFigures figures;
+  tbb::parallel_invoke([&] { figures.topology = topology_of(mesh, table); },
+                       [&] { figures.quality = quality_of(mesh, table); });
+  return figures;
 }
 
 }  // namespace streamcvd

@@ -56,4 +56,13 @@ struct QualityStats {
 /// Throws InputError if an index is ≥ V.
 QualityStats compute_quality(const TriangleSoupView& mesh);
 
+struct MeshFigures {
+  TopologyStats topology;
+  QualityStats quality;
+};
+
+/// compute_topology_stats and compute_quality together: the edge table they both start from
+/// is built once, then the two run side by side (TBB). Same figures as the two calls.
+MeshFigures compute_mesh_figures(const TriangleSoupView& mesh);
+
 }  // namespace streamcvd

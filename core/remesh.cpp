@@ -55,7 +55,7 @@ RemeshResult remesh(const MeshView& input, const RemeshOptions& options, ArraySt
   Clusters clusters = cluster_for_vertex_count(job, items, loops);
   result.repair = repair_defects(job, items, loops, clusters);
   items.sampling = ItemData{};  // no pass samples again
-  DualStage dual = build_dual(job, items.energy, clusters, loops);
+  DualStage dual = build_dual(job, items.energy, clusters, loops, std::move(result.repair.dual_faces));
   result.placement = place_output(job, items.energy, clusters, dual);
   if (job.plan.optimize) result.quality = improve_quality(job, clusters, loops, dual.dual);
   result.checks = check_output(job, clusters, loops, result.placement, dual.dual);

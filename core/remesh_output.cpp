@@ -92,13 +92,13 @@ uint64_t revert_needle_sites(Job& job, const Clusters& c, DualMesh& dual, std::v
 
 }  // namespace
 
-DualStage build_dual(Job& job, const ItemData& items, Clusters& c, const BoundaryLoops& loops) {
+DualStage build_dual(Job& job, const ItemData& items, Clusters& c, const BoundaryLoops& loops, dual::Triples triples) {
   job.begin("dual");
   DualStage d;
   d.state = solved_cluster_state(items, c.labels, c.K, job.clustering);
   d.report.final_energy = state_energy(items, d.state);
   d.sites = cluster_sites(items, d.state);
-  d.dual = build_dual_mesh(job.mesh(), c.labels, c.K, d.sites, c.dual, &loops);
+  d.dual = build_dual_mesh(job.mesh(), c.labels, c.K, d.sites, c.dual, &loops, std::move(triples));
   d.report.vertex_shortfall = int64_t(job.options.vertices) - int64_t(d.dual.mesh.vertex_count());
   d.report.duplicate_faces_removed = d.dual.duplicate_faces_removed;
   d.report.boundary_vertices_added = d.dual.boundary_vertices_added;

@@ -108,8 +108,9 @@ Clusters cluster_for_vertex_count(Job& job, const Items& items, const BoundaryLo
 /// "repair": the clustering repaired around the dual's defects (core/dual/repair.h), N
 /// clusters again when those found for the strips cannot be repaired. The last run's report.
 DefectRepairResult repair_defects(Job& job, const Items& items, const BoundaryLoops& loops, Clusters& c);
-/// "dual": the sites (solved once), the dual mesh and its defects. O(F + D log D).
-DualStage build_dual(Job& job, const ItemData& items, Clusters& c, const BoundaryLoops& loops);
+/// "dual": the sites (solved once), the dual mesh and its defects, from `triples`, the dual
+/// faces of the labels as the repair left them (DefectRepairResult::dual_faces). O(V + D log D).
+DualStage build_dual(Job& job, const ItemData& items, Clusters& c, const BoundaryLoops& loops, dual::Triples triples);
 /// "placement": output vertices at the projected centroids or the QEM points (needles
 /// reverted), then the last-resort removal of defects. O(V + F).
 PlacementReport place_output(Job& job, const ItemData& items, const Clusters& c, DualStage& d);

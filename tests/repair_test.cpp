@@ -1,6 +1,6 @@
 // Tests of core/dual/repair.h: the incremental repair loop finds the same defects as the global
-// finder on the built dual, leaves a defect-free dual with connected clusters, and cuts a ring
-// round a tube in three.
+// finder on the built dual, keeps the dual faces of its labels, leaves a defect-free dual with
+// connected clusters, and cuts a ring round a tube in three.
 #include "streamcvd/core/dual/repair.h"
 
 #include <gtest/gtest.h>
@@ -70,6 +70,13 @@ std::vector<int32_t> rough_clustering(const MeshView& view, const ItemData& item
   return test::to_vector(initial_sampling(view, items, budget, seed, ram_storage()));
 }
 
+// The dual faces the repair kept up to date are those of its final labels, repeats included.
+void expect_kept_triples_match(const MeshView& view, const std::vector<int32_t>& labels, const dual::Triples& kept) {
+  const dual::Triples fresh = dual::collect_triples(view, labels);
+  EXPECT_EQ(kept.faces, fresh.faces);
+  EXPECT_EQ(kept.repeats, fresh.repeats);
+}
+
 // Returns how many of the starts had a defect.
 int check_rounds(const MeshBuffers& soup, uint32_t K) {
   MeshStore store = MeshStore::build(soup.view());
@@ -90,6 +97,7 @@ int check_rounds(const MeshBuffers& soup, uint32_t K) {
       DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, options, report, ram_storage());
       EXPECT_EQ(r.defect_vertices, global_defects(view, labels, K, loops)) << "K " << K << " seed " << seed << " rounds " << rounds;
       EXPECT_LE(r.rounds, rounds);
+      expect_kept_triples_match(view, labels, r.dual_faces);
     }
     std::vector<int32_t> labels = start;
     ClusteringReport report;
@@ -97,6 +105,7 @@ int check_rounds(const MeshBuffers& soup, uint32_t K) {
     relaxed.clustering = test::metric_i_one_thread();
     DefectRepairResult r = repair_dual_defects(view, items, labels, K, adjustable, loops, relaxed, report, ram_storage());
     EXPECT_EQ(r.defect_vertices, global_defects(view, labels, K, loops));
+    expect_kept_triples_match(view, labels, r.dual_faces);  // through the relaxation and its undoing
     if (r.defect_vertices == 0) {
       EXPECT_TRUE(clusters_connected(view, labels, K));
     }
@@ -110,6 +119,43 @@ TEST(RepairLoop, IncrementalChecksMatchTheGlobalFinderOnATorus) {
   int defective = 0;
   for (uint32_t K : {8u, 12u, 20u, 40u}) defective += check_rounds(make_torus(60, 120), K);
   EXPECT_GT(defective, 0) << "no start had a defect: nothing incremental was checked";
+}
+
+TEST(KeptDualFaces, ReplacingTheFacesAroundAChangeGivesThoseOfTheNewLabels) {
+  // Tiles of 3 labels in a periodic pattern: the same oriented triple at many tile corners, so
+  // the list has repeats. Then one tile after another gets a new label, and the kept list is
+  // updated from the faces around the changed clusters only.
+  MeshStore store = MeshStore::build(make_grid(41, 41).view());
+  const MeshView view = store.view();
+  auto tile_of = [&](uint32_t v) {
+    const float* p = &view.positions[3 * size_t(v)];
+    return std::pair<int, int>{int(std::lround(p[0] * 40)) / 5, int(std::lround(p[1] * 40)) / 5};
+  };
+  std::vector<int32_t> labels(view.vertex_count());
+  for (uint32_t v = 0; v < labels.size(); ++v) labels[v] = (tile_of(v).first + tile_of(v).second) % 3;
+  constexpr uint32_t K = 8;
+  dual::Triples kept = dual::collect_triples(view, labels);
+  ASSERT_GT(kept.repeats.size(), 0u) << "the pattern gave no repeated face";
+  for (int32_t fresh_label = 3; fresh_label < int32_t(K); ++fresh_label) {
+    const std::pair<int, int> tile = {fresh_label, 7 - fresh_label};
+    std::vector<uint8_t> in_set(K, 0);
+    for (uint32_t v = 0; v < labels.size(); ++v) {
+      if (tile_of(v) != tile) continue;
+      in_set[labels[v]] = in_set[fresh_label] = 1;
+      for (uint32_t n : view.neighbours(v)) in_set[labels[n]] = 1;
+      labels[v] = fresh_label;
+    }
+    std::vector<uint32_t> members;
+    for (uint32_t v = 0; v < labels.size(); ++v)
+      if (in_set[labels[v]]) members.push_back(v);
+    std::vector<dual::Face> repeats;
+    std::vector<dual::Face> faces = dual::triples_around(view, labels, members, in_set, &repeats);
+    dual::replace_triples(kept, in_set, std::move(faces), std::move(repeats));
+    const dual::Triples expected = dual::collect_triples(view, labels);
+    EXPECT_EQ(kept.faces, expected.faces) << "tile " << tile.first << ", " << tile.second;
+    EXPECT_EQ(kept.repeats, expected.repeats) << "tile " << tile.first << ", " << tile.second;
+    EXPECT_EQ(kept.emitted(), expected.emitted());
+  }
 }
 
 TEST(RepairLoop, IncrementalChecksMatchTheGlobalFinderOnAGridWithStrips) {

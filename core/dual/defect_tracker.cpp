@@ -1,7 +1,8 @@
 // The repair loop's incremental defect check (core/dual/defect_tracker.h). Per check: the dual
 // faces with a corner in the re-checked clusters (dual::collect_triples on the first check,
-// dual::triples_around after), merged with the strip faces of the labels, the fan test on the
-// re-checked clusters and the strip vertices, and the input-adjacent pairs with no dual edge.
+// dual::triples_around after, which also updates the whole list kept for the dual), merged with
+// the strip faces of the labels, the fan test on the re-checked clusters and the strip
+// vertices, and the input-adjacent pairs with no dual edge.
 #include "streamcvd/core/dual/defect_tracker.h"
 
 #include <algorithm>
@@ -71,9 +72,9 @@ std::vector<int32_t> DefectTracker::check(std::span<const int32_t> labels, bool 
   std::vector<dual::Face> faces;
   std::vector<uint64_t> neighbour_pairs;  // clusters meeting along an input edge, from the set
   if (all) {
-    dual::Triples triples = dual::collect_triples(mesh_, labels, true);
-    faces = std::move(triples.faces);
-    neighbour_pairs = std::move(triples.neighbour_pairs);
+    triples_ = dual::collect_triples(mesh_, labels, true);
+    faces = triples_.faces;
+    neighbour_pairs = std::move(triples_.neighbour_pairs);
   } else {
     std::vector<uint32_t> vertices;  // the set's members
     std::vector<uint32_t> members;
@@ -84,7 +85,9 @@ std::vector<int32_t> DefectTracker::check(std::span<const int32_t> labels, bool 
     // In store order: out of core, the set's clusters lie all over the mesh (the merges of a
     // count round), and reading their faces in set order re-reads pages (the result is sorted).
     std::sort(vertices.begin(), vertices.end());
-    faces = dual::triples_around(mesh_, labels, vertices, set_.flags());
+    std::vector<dual::Face> repeats;
+    faces = dual::triples_around(mesh_, labels, vertices, set_.flags(), &repeats);
+    dual::replace_triples(triples_, set_.flags(), faces, std::move(repeats));
     neighbour_pairs = dual::neighbour_pairs_around(mesh_, labels, vertices);
   }
   uint32_t strip_vertices = 0;

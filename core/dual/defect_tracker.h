@@ -21,8 +21,8 @@ namespace streamcvd::detail {
 /// dual vertex's defect status depends only on the faces around it, and a dual face changes only
 /// when a corner of its input triangle changes label: after a change, only the clusters on the
 /// changed vertices' 1-rings (and on boundary loops that changed) are re-checked. Memory O(K)
-/// plus the boundary; `mesh`, `loops` and `members` must outlive it. Not thread-safe (its checks
-/// run TBB-parallel inside).
+/// plus the boundary and the dual faces (12 bytes each, about 2K); `mesh`, `loops` and
+/// `members` must outlive it. Not thread-safe (its checks run TBB-parallel inside).
 class DefectTracker {
  public:
   DefectTracker(const MeshView& mesh, const BoundaryLoops& loops, uint32_t K, const DualMeshOptions& options,
@@ -52,6 +52,10 @@ class DefectTracker {
   /// hole's loop (each meets it in two stretches: boundary_strip_faces). Not defects: the dual
   /// is valid. Sorted, unique.
   const std::vector<OpenHole>& open_holes() const { return open_holes_; }
+  /// The dual faces of the labels at the last check (strips not included), as collect_triples
+  /// would give them: kept up to date by every check, so that the dual is built without
+  /// reading the mesh again. Moved out: the tracker must not check after this. O(1).
+  dual::Triples take_triples() { return std::move(triples_); }
 
  private:
   std::vector<int32_t> check(std::span<const int32_t> labels, bool all);
@@ -74,6 +78,7 @@ class DefectTracker {
   uint32_t strip_vertices_ = 0;
   std::vector<Ring> rings_;
   std::vector<OpenHole> open_holes_;
+  dual::Triples triples_;  // faces and repeats of the last check (D-sized, no neighbour pairs)
 };
 
 }  // namespace streamcvd::detail

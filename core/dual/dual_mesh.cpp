@@ -369,7 +369,7 @@ std::vector<dual::Face> boundary_strip_faces(const MeshView& mesh, const Boundar
 
 DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count,
                          std::span<const double> cluster_positions, const DualMeshOptions& options,
-                         const BoundaryLoops* boundary_loops) {
+                         const BoundaryLoops* boundary_loops, std::optional<dual::Triples> given) {
   DualMesh dual;
   // Non-empty clusters, in id order, become the output vertices.
   const std::vector<uint32_t> cluster_size = dual::cluster_sizes(mesh, labels, cluster_count);
@@ -383,11 +383,11 @@ DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, 
   }
   // The triples in cluster ids, renumbered: output_of_cluster is increasing on the non-empty
   // clusters, so the renumbered triples stay rotated, sorted and unique.
-  dual::Triples triples = dual::collect_triples(mesh, labels);
+  dual::Triples triples = given ? std::move(*given) : dual::collect_triples(mesh, labels);
   std::vector<dual::Face>& faces = triples.faces;
   for (dual::Face& t : faces)
     for (uint32_t& x : t) x = output_of_cluster[x];
-  uint64_t emitted = triples.emitted;
+  uint64_t emitted = triples.emitted();
   if (options.boundary_strips) {
     std::vector<dual::Face> strips;
     if (boundary_loops) {

@@ -7,6 +7,7 @@
 #include <array>
 #include <compare>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -14,6 +15,26 @@
 #include "streamcvd/core/mesh/mesh_view.h"
 
 namespace streamcvd {
+
+namespace dual {
+
+/// A dual face: three vertex (cluster) ids in the orientation of the input face.
+using Face = std::array<uint32_t, 3>;
+
+/// The dual faces of a clustering as collect_triples finds them (core/dual/dual_topology.h).
+struct Triples {
+  std::vector<Face> faces;    ///< rotated, sorted, unique
+  /// One entry per input face whose triple another input face also gives (the copies past the
+  /// first), sorted: what deduplication drops. Rare on a clean clustering (dragon ×9 → 300,000: none).
+  std::vector<Face> repeats;
+  /// Input faces with three distinct labels (before deduplication).
+  uint64_t emitted() const { return faces.size() + repeats.size(); }
+  /// With neighbour_pairs asked for: the cluster pairs {a < b} (packed a << 32 | b) joined by
+  /// an edge of an input face, sorted, unique.
+  std::vector<uint64_t> neighbour_pairs;
+};
+
+}  // namespace dual
 
 struct DualMeshOptions {
   bool boundary_strips = true;  ///< §VI-D: one vertex + two triangles per cluster change along a boundary
@@ -76,10 +97,12 @@ BoundaryLoops find_boundary_loops(const MeshView& mesh);
 
 /// Builds the dual mesh. `cluster_positions` holds 3 doubles per cluster (the output vertex of
 /// each cluster, z_i). Empty clusters produce no vertex. `boundary_loops` may be null (then
-/// computed here). O(F + D log D) for D dual faces. Deterministic. Thread-safe (pure).
+/// computed here). `triples`, when given, must be dual::collect_triples of these labels (the
+/// repair keeps them: DefectRepairResult::dual_faces); otherwise they are collected here.
+/// O(F + D log D) for D dual faces (O(V + D log D) with `triples`). Deterministic. Thread-safe (pure).
 DualMesh build_dual_mesh(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count,
                          std::span<const double> cluster_positions, const DualMeshOptions& options = {},
-                         const BoundaryLoops* boundary_loops = nullptr);
+                         const BoundaryLoops* boundary_loops = nullptr, std::optional<dual::Triples> triples = {});
 
 /// A cluster that keeps a hole below the output resolution open, and the hole's boundary loop.
 struct OpenHole {

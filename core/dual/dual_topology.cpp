@@ -50,6 +50,34 @@ void parallel_sort_unique(std::vector<T>& v) {
   v.erase(std::unique(v.begin(), v.end()), v.end());
 }
 
+// Keeps one copy of each face of `sorted` and appends the others to `repeats`. O(n).
+void move_repeats(std::vector<Face>& sorted, std::vector<Face>& repeats) {
+  size_t kept = 0;
+  for (size_t i = 0; i < sorted.size(); ++i) {
+    if (kept > 0 && sorted[i] == sorted[kept - 1]) repeats.push_back(sorted[i]);
+    else sorted[kept++] = sorted[i];
+  }
+  sorted.resize(kept);
+}
+
+// Concatenates the blocks' faces (each sorted and unique) and their repeats, and splits the
+// result into unique faces and repeats, both sorted.
+void merge_blocks(std::vector<std::vector<Face>>& found, std::vector<std::vector<Face>>& block_repeats,
+                  std::vector<Face>& faces, std::vector<Face>& repeats) {
+  size_t total = 0, total_repeats = 0;
+  for (size_t i = 0; i < found.size(); ++i) total += found[i].size(), total_repeats += block_repeats[i].size();
+  faces.reserve(faces.size() + total);
+  for (std::vector<Face>& f : found) {  // block order
+    faces.insert(faces.end(), f.begin(), f.end());
+    std::vector<Face>().swap(f);
+  }
+  tbb::parallel_sort(faces.begin(), faces.end());
+  repeats.reserve(repeats.size() + total_repeats);
+  move_repeats(faces, repeats);  // a face two blocks gave
+  for (std::vector<Face>& r : block_repeats) repeats.insert(repeats.end(), r.begin(), r.end());
+  std::sort(repeats.begin(), repeats.end());
+}
+
 
 }  // namespace
 
@@ -104,9 +132,8 @@ void merge_faces(std::vector<Face>& faces, std::vector<Face> more) {
 
 Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, bool neighbour_pairs) {
   const std::vector<FaceRange> blocks = chunk_face_blocks(mesh);
-  std::vector<std::vector<Face>> found(blocks.size());
+  std::vector<std::vector<Face>> found(blocks.size()), block_repeats(blocks.size());
   std::vector<std::vector<uint64_t>> pairs(neighbour_pairs ? blocks.size() : 0);
-  std::vector<uint64_t> emitted(blocks.size(), 0);
   const uint32_t* T = mesh.triangles.data();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
@@ -118,7 +145,6 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, b
       const RangeVisit visit(mesh, "dual", owners, kReadsTriangles);
       for (uint64_t f = blocks[i].begin; f < blocks[i].end; ++f)
         if (face_triple(T + 3 * f, labels, t)) out.push_back(t);
-      emitted[i] = out.size();
       if (neighbour_pairs) {  // every input edge is an edge of a face: the faces give them all
         std::vector<uint64_t>& p = pairs[i];
         RecentPairs recent;
@@ -130,21 +156,12 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, b
           }
         sort_unique(p);
       }
-      sort_unique(out);  // neighbouring input faces often give the same triple: the merge is smaller
+      std::sort(out.begin(), out.end());
+      move_repeats(out, block_repeats[i]);
     }
   });
   Triples result;
-  size_t total = 0;
-  for (size_t i = 0; i < blocks.size(); ++i) {
-    total += found[i].size();
-    result.emitted += emitted[i];
-  }
-  result.faces.reserve(total);
-  for (std::vector<Face>& f : found) {  // chunk order
-    result.faces.insert(result.faces.end(), f.begin(), f.end());
-    std::vector<Face>().swap(f);
-  }
-  parallel_sort_unique(result.faces);
+  merge_blocks(found, block_repeats, result.faces, result.repeats);
   for (std::vector<uint64_t>& p : pairs) {
     result.neighbour_pairs.insert(result.neighbour_pairs.end(), p.begin(), p.end());
     std::vector<uint64_t>().swap(p);
@@ -154,10 +171,11 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, b
 }
 
 std::vector<Face> triples_around(const MeshView& mesh, std::span<const int32_t> labels,
-                                 std::span<const uint32_t> vertices, std::span<const uint8_t> in_set) {
+                                 std::span<const uint32_t> vertices, std::span<const uint8_t> in_set,
+                                 std::vector<Face>* repeats) {
   constexpr size_t kBlock = 4096;
   const size_t blocks = (vertices.size() + kBlock - 1) / kBlock;
-  std::vector<std::vector<Face>> found(blocks);
+  std::vector<std::vector<Face>> found(blocks), block_repeats(blocks);
   const uint32_t* T = mesh.triangles.data();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t b = r.begin(); b != r.end(); ++b) {
@@ -173,13 +191,26 @@ std::vector<Face> triples_around(const MeshView& mesh, std::span<const int32_t> 
           if (c[first] == v) out.push_back(t);
         }
       }
-      sort_unique(out);
+      std::sort(out.begin(), out.end());
+      move_repeats(out, block_repeats[b]);
     }
   });
-  std::vector<Face> faces;
-  for (std::vector<Face>& f : found) faces.insert(faces.end(), f.begin(), f.end());
-  parallel_sort_unique(faces);
+  std::vector<Face> faces, dropped;
+  merge_blocks(found, block_repeats, faces, repeats ? *repeats : dropped);
   return faces;
+}
+
+void replace_triples(Triples& triples, std::span<const uint8_t> in_set, std::vector<Face> faces,
+                     std::vector<Face> repeats) {
+  auto replace = [&](std::vector<Face>& kept, std::vector<Face>& added) {
+    std::erase_if(kept, [&](const Face& f) { return in_set[f[0]] | in_set[f[1]] | in_set[f[2]]; });
+    const size_t before = kept.size();
+    kept.insert(kept.end(), added.begin(), added.end());
+    std::inplace_merge(kept.begin(), kept.begin() + std::ptrdiff_t(before), kept.end());
+  };
+  // The faces left have no corner in the set and the added ones all have one: no face is in both.
+  replace(triples.faces, faces);
+  replace(triples.repeats, repeats);
 }
 
 std::vector<uint64_t> unjoined_pairs(std::span<const uint64_t> neighbour_pairs, std::span<const Face> faces,

@@ -13,13 +13,11 @@
 #include <utility>
 #include <vector>
 
+#include "streamcvd/core/dual/dual_mesh.h"  // Face, Triples
 #include "streamcvd/core/mesh/chunked_components.h"
 #include "streamcvd/core/mesh/mesh_view.h"
 
 namespace streamcvd::dual {
-
-/// A dual face: three vertex (cluster) ids in the orientation of the input face.
-using Face = std::array<uint32_t, 3>;
 
 /// (a, b, c) rotated so the smallest id comes first, keeping the cyclic order (orientation): the
 /// canonical form two copies of one oriented face share. Ids must be distinct.
@@ -64,14 +62,6 @@ std::vector<FaceRange> chunk_face_blocks(const MeshView& mesh, uint64_t max_face
 /// vertex ranges. Throws std::invalid_argument unless labels.size() == V.
 std::vector<uint32_t> cluster_sizes(const MeshView& mesh, std::span<const int32_t> labels, uint32_t cluster_count);
 
-struct Triples {
-  std::vector<Face> faces;  ///< rotated, sorted, unique
-  uint64_t emitted = 0;     ///< input faces with three distinct labels (before deduplication)
-  /// With neighbour_pairs asked for: the cluster pairs {a < b} (packed a << 32 | b) joined by
-  /// an edge of an input face, sorted, unique.
-  std::vector<uint64_t> neighbour_pairs;
-};
-
 /// The dual faces of every input face with three distinct labels: chunk by chunk in parallel
 /// (TBB; each block of a chunk's owned faces sorted and deduplicated on its own), merged in
 /// chunk order and deduplicated by one sort of the K-sized list. The result depends on the
@@ -82,10 +72,19 @@ Triples collect_triples(const MeshView& mesh, std::span<const int32_t> labels, b
 
 /// The dual faces of the input faces around `vertices` that have a corner in a cluster c with
 /// in_set[c] (size K): every dual face with a corner in the set when `vertices` lists all the
-/// set's members. Rotated, sorted, unique. Parallel over blocks of `vertices`; deterministic.
+/// set's members. Rotated, sorted, unique; `repeats`, when given, receives the copies past the
+/// first (as Triples::repeats). Parallel over blocks of `vertices`; deterministic.
 /// O(Σ faces of the vertices).
 std::vector<Face> triples_around(const MeshView& mesh, std::span<const int32_t> labels,
-                                 std::span<const uint32_t> vertices, std::span<const uint8_t> in_set);
+                                 std::span<const uint32_t> vertices, std::span<const uint8_t> in_set,
+                                 std::vector<Face>* repeats = nullptr);
+
+/// Replaces in `triples` (faces and repeats, as collect_triples gives them) every face with a
+/// corner c where in_set[c] by `faces` and `repeats`, which must be all the faces with such a
+/// corner under the new labels (triples_around of the set's members): the dual of a clustering
+/// kept up to date through a repair without a read of the whole mesh. O(D + new faces).
+void replace_triples(Triples& triples, std::span<const uint8_t> in_set, std::vector<Face> faces,
+                     std::vector<Face> repeats);
 
 /// Of the cluster pairs `neighbour_pairs` (sorted, packed a << 32 | b, a < b, joined by an input
 /// edge), those joined by no edge of `faces` (the dual faces, strip faces included; ids ≥

@@ -103,6 +103,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   if (bad.empty() && change == 0 && holes.empty()) {
     result.defect_vertices = tracker.defect_vertices();
     result.unjoined_pairs = tracker.unjoined_pairs();
+    result.dual_faces = tracker.take_triples();
     return result;
   }
   t = std::chrono::steady_clock::now();
@@ -175,7 +176,10 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   scattered.reset();
   result.defect_vertices = tracker.defect_vertices();
   result.unjoined_pairs = tracker.unjoined_pairs();
-  if (!bad.empty() || result.rounds == 0 || !options.relax) return result;
+  if (!bad.empty() || result.rounds == 0 || !options.relax) {
+    result.dual_faces = tracker.take_triples();
+    return result;
+  }
   // The repair leaves split halves and merged pairs unrelaxed. Relax the touched clusters once
   // (constrained) with the clusters around the repaired defects frozen (their vertices hidden
   // as free, so nothing moves into or out of them): relaxing those rebuilds the thin-feature
@@ -250,6 +254,7 @@ DefectRepairResult repair_dual_defects(const MeshView& mesh, const ItemData& ite
   }
   result.defect_vertices = tracker.defect_vertices();
   result.unjoined_pairs = tracker.unjoined_pairs();
+  result.dual_faces = tracker.take_triples();
   result.repair_seconds += seconds_since(t);
   return result;
 }

@@ -50,6 +50,9 @@ struct DefectRepairResult {
   /// apart along their frontier; see dual::unjoined_pairs).
   uint64_t unjoined_pairs = 0;
   std::vector<uint8_t> touched;         ///< per cluster: 1 when the repair changed it
+  /// The dual faces of the final labels (strips not included), kept up to date by the checks:
+  /// build_dual_mesh takes them instead of reading the mesh again. D-sized (about 2K faces).
+  dual::Triples dual_faces;
   double check_seconds = 0, repair_seconds = 0;
 };
 

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <optional>
 
+#include "streamcvd/core/mesh/anonymous_pages.h"
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/core/measure/store_stats.h"
 #include "streamcvd/core/mesh/subdivide.h"
@@ -39,6 +40,15 @@ uint64_t work_ram_budget(uint64_t limit, uint64_t ram_store_bytes) {
 uint64_t resident_budget(uint64_t limit, uint64_t work_ram_bytes) {
   if (limit == 0) return ~uint64_t(0);
   return std::max<uint64_t>(limit > work_ram_bytes ? limit - work_ram_bytes : 0, 64ull << 20);
+}
+
+// Freed memory malloc keeps for the job's next arrays (keep_freed_heap_memory): in core a
+// sixteenth of the limit, at most 256 MiB, since a fresh page is dear. Out of core none: kept
+// memory takes the page cache's room (x121 in 2 GiB with 256 MiB kept: optimize 14.0 -> 21.1
+// s, checks 5.2 -> 8.6 s, 139.8 -> 150.6 s in all).
+size_t freed_memory_kept(uint64_t limit, bool in_core) {
+  if (!in_core) return 0;
+  return size_t(std::min<uint64_t>(limit == 0 ? ~uint64_t(0) : limit / 16, uint64_t(256) << 20));
 }
 
 // The columns of `available` that options select, in the order given (file order for All).
@@ -121,10 +131,19 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
   // resident as a whole.
   const MeshStore& remeshed = result.subdivision_levels > 0 ? subdivided : store;
   std::optional<ChunkScheduler> scheduler;
+  const uint64_t resident = resident_budget(options.memory_limit, result.work_ram_bytes);
   if (remeshed.ram_bytes() == 0 && !view.chunks.empty()) {
-    scheduler.emplace(remeshed, &space, resident_budget(options.memory_limit, result.work_ram_bytes));
+    scheduler.emplace(remeshed, &space, resident);
     view.residency = &*scheduler;
   }
+  const size_t kept = freed_memory_kept(options.memory_limit, remeshed.ram_bytes() > 0 || remeshed.size_bytes() <= resident);
+  if (kept > 0) keep_freed_heap_memory(kept);
+  struct GiveBack {  // the kept memory goes back when the job ends, however it ends
+    bool kept;
+    ~GiveBack() {
+      if (kept) keep_freed_heap_memory(0);
+    }
+  } give_back{kept > 0};
   if (!columns.empty())  // a subdivided store has every column of the input's
     remesh_options.attributes = {remeshed.vertex_attributes(), remeshed.header().attribute_count, columns};
   remesh_options.keep_vertex_labels = false;  // only the output mesh leaves the job

@@ -2,16 +2,20 @@
 // ahead once while resident and released past the budget, scattered-reads brackets, and the
 // remesh of a mapped store visited through it identical to the remesh of the same store in RAM;
 // the page advice under it (streaming/store/page_advice.h) reading a whole range ahead, and the
-// anonymous blocks (core/mesh/anonymous_pages.h) left without huge-page advice.
+// anonymous blocks (core/mesh/anonymous_pages.h) left without huge-page advice, and malloc's
+// freed memory kept for reuse.
 #include "streamcvd/streaming/schedule/chunk_scheduler.h"
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/mman.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -118,6 +122,40 @@ TEST(AnonymousPages, LargeBlocksAreNotAdvisedHugePages) {
   unmap_anonymous_pages(block, bytes);
   if (flags.empty()) GTEST_SKIP() << "no /proc/self/smaps";
   EXPECT_EQ(flags.find(" hg"), std::string::npos) << flags;
+}
+
+// Page faults of this thread so far.
+long thread_minor_faults() {
+  rusage usage{};
+  ::getrusage(RUSAGE_THREAD, &usage);
+  return usage.ru_minflt;
+}
+
+// With freed heap memory kept, an 8 MiB block freed and allocated again comes back without page
+// faults; with none kept (glibc's default thresholds) it is mapped afresh, a fault per page.
+TEST(AnonymousPages, KeptHeapMemoryIsReusedWithoutFaults) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__) || !defined(__GLIBC__)
+  GTEST_SKIP() << "malloc is not glibc's here";
+#endif
+  constexpr size_t kBytes = size_t(8) << 20;
+  auto touch = [](size_t bytes, int value) {
+    char* p = static_cast<char*>(std::malloc(bytes));
+    std::memset(p, value, bytes);
+    asm volatile("" : : "g"(p) : "memory");  // the block and its writes must happen
+    return p;
+  };
+  auto faults_of_reuse = [&] {
+    std::free(touch(kBytes, 1));
+    const long before = thread_minor_faults();
+    std::free(touch(kBytes, 2));
+    return thread_minor_faults() - before;
+  };
+  keep_freed_heap_memory(size_t(64) << 20);
+  const long kept = faults_of_reuse();
+  keep_freed_heap_memory(0);
+  const long returned = faults_of_reuse();
+  EXPECT_LT(kept, 64);
+  EXPECT_GT(returned, 1000) << "8 MiB of fresh 4 KiB pages";
 }
 
 // Inside a scattered-reads bracket the store is advised random (no read-around on a fault) and

@@ -42,15 +42,6 @@ uint64_t resident_budget(uint64_t limit, uint64_t work_ram_bytes) {
   return std::max<uint64_t>(limit > work_ram_bytes ? limit - work_ram_bytes : 0, 64ull << 20);
 }
 
-// Freed memory malloc keeps for the job's next arrays (keep_freed_heap_memory): in core a
-// sixteenth of the limit, at most 256 MiB, since a fresh page is dear. Out of core none: kept
-// memory takes the page cache's room (x121 in 2 GiB with 256 MiB kept: optimize 14.0 -> 21.1
-// s, checks 5.2 -> 8.6 s, 139.8 -> 150.6 s in all).
-size_t freed_memory_kept(uint64_t limit, bool in_core) {
-  if (!in_core) return 0;
-  return size_t(std::min<uint64_t>(limit == 0 ? ~uint64_t(0) : limit / 16, uint64_t(256) << 20));
-}
-
 // The columns of `available` that options select, in the order given (file order for All).
 // Throws InputError for a name the input lacks, listing those it has.
 std::vector<uint32_t> selected_attribute_columns(const std::vector<VertexAttribute>& available, const PipelineOptions& options) {
@@ -136,14 +127,11 @@ PipelineResult remesh_store(const MeshStore& store, const PipelineOptions& optio
     scheduler.emplace(remeshed, &space, resident);
     view.residency = &*scheduler;
   }
-  const size_t kept = freed_memory_kept(options.memory_limit, remeshed.ram_bytes() > 0 || remeshed.size_bytes() <= resident);
-  if (kept > 0) keep_freed_heap_memory(kept);
-  struct GiveBack {  // the kept memory goes back when the job ends, however it ends
-    bool kept;
-    ~GiveBack() {
-      if (kept) keep_freed_heap_memory(0);
-    }
-  } give_back{kept > 0};
+  // A store that stays resident: fresh pages are taken as in core until the job ends, however
+  // it ends. Out of core no scope: 256 MiB of malloc's kept at x121 in 2 GiB took the page
+  // cache's room (139.8 -> 150.6 s).
+  std::optional<InCoreMemory> in_core;
+  if (remeshed.ram_bytes() > 0 || remeshed.size_bytes() <= resident) in_core.emplace(options.memory_limit);
   if (!columns.empty())  // a subdivided store has every column of the input's
     remesh_options.attributes = {remeshed.vertex_attributes(), remeshed.header().attribute_count, columns};
   remesh_options.keep_vertex_labels = false;  // only the output mesh leaves the job

@@ -158,6 +158,37 @@ TEST(AnonymousPages, KeptHeapMemoryIsReusedWithoutFaults) {
   EXPECT_GT(returned, 1000) << "8 MiB of fresh 4 KiB pages";
 }
 
+// Pages of [p, p + bytes) in RAM (mincore), without touching them.
+size_t resident_pages(void* p, size_t bytes) {
+  const size_t page = size_t(::sysconf(_SC_PAGESIZE));
+  std::vector<unsigned char> in_core((bytes + page - 1) / page);
+  if (::mincore(p, bytes, in_core.data()) != 0) return 0;
+  size_t n = 0;
+  for (unsigned char c : in_core) n += c & 1;
+  return n;
+}
+
+// Inside an InCoreMemory scope a fresh 8 MiB block is all resident before its first touch (one
+// mmap call populated it); outside, none of it is. Scopes nest: the inner one's end changes
+// nothing.
+TEST(AnonymousPages, BlocksArePopulatedInsideAnInCoreScopeOnly) {
+  constexpr size_t kBytes = size_t(8) << 20;
+  auto resident_when_mapped = [&] {
+    void* block = map_anonymous_pages(kBytes);
+    const size_t pages = resident_pages(block, kBytes);
+    unmap_anonymous_pages(block, kBytes);
+    return pages;
+  };
+  const size_t all = kBytes / size_t(::sysconf(_SC_PAGESIZE));
+  EXPECT_EQ(resident_when_mapped(), 0u);
+  {
+    const InCoreMemory outer(size_t(1) << 30);
+    { const InCoreMemory inner(size_t(1) << 30); }
+    EXPECT_EQ(resident_when_mapped(), all);
+  }
+  EXPECT_EQ(resident_when_mapped(), 0u);
+}
+
 // Inside a scattered-reads bracket the store is advised random (no read-around on a fault) and
 // a visit that reads arrays reads its chunks ahead again, since the kernel may have evicted
 // them; a visit that reads none (a sparse clustering round) does not. Nested brackets count.

@@ -1,4 +1,5 @@
-// How much of malloc's freed memory the process keeps (core/mesh/anonymous_pages.h).
+// How a job takes fresh memory: populated blocks, malloc's freed memory kept
+// (core/mesh/anonymous_pages.h).
 #include "streamcvd/core/mesh/anonymous_pages.h"
 
 #if defined(__GLIBC__)
@@ -6,8 +7,18 @@
 #endif
 
 #include <algorithm>
+#include <mutex>
 
 namespace streamcvd {
+
+std::atomic<bool> detail::populate_fresh_blocks{false};
+
+namespace {
+
+std::mutex g_scope_mutex;
+int g_scope_depth = 0;
+
+}  // namespace
 
 void keep_freed_heap_memory(std::size_t bytes) noexcept {
 #if defined(__GLIBC__)
@@ -25,6 +36,21 @@ void keep_freed_heap_memory(std::size_t bytes) noexcept {
 #else
   (void)bytes;
 #endif
+}
+
+InCoreMemory::InCoreMemory(std::uint64_t memory_limit) {
+  std::lock_guard lock(g_scope_mutex);
+  if (g_scope_depth++ > 0) return;
+  const std::uint64_t share = memory_limit == 0 ? ~std::uint64_t(0) : memory_limit / 16;
+  keep_freed_heap_memory(std::size_t(std::min<std::uint64_t>(share, std::uint64_t(256) << 20)));
+  detail::populate_fresh_blocks.store(true, std::memory_order_relaxed);
+}
+
+InCoreMemory::~InCoreMemory() {
+  std::lock_guard lock(g_scope_mutex);
+  if (--g_scope_depth > 0) return;
+  detail::populate_fresh_blocks.store(false, std::memory_order_relaxed);
+  keep_freed_heap_memory(0);
 }
 
 }  // namespace streamcvd

@@ -16,6 +16,7 @@
 #include <map>
 #include <type_traits>
 
+#include "streamcvd/core/mesh/anonymous_pages.h"
 #include "streamcvd/core/mesh/errors.h"
 #include "streamcvd/core/measure/store_stats.h"
 #include "streamcvd/streaming/io/output_file.h"
@@ -56,13 +57,23 @@ class MemoryOutputs final : public StoreOutputs {
   std::map<std::string, MemoryArrayOutput> arrays_;
 };
 
+// Whether a store of this size fits half the memory limit (0 = no limit): built in RAM, or
+// (ingest) with its build's memory taken as in core (InCoreMemory).
+bool store_fits_half(uint64_t vertices, uint64_t faces, uint64_t limit) {
+  const uint64_t bytes = 52 * faces + 33 * vertices;  // the store's size, 52 B/face + 33 B/vertex
+  return limit == 0 || bytes <= limit / 2;
+}
+
 // The arrays of a store written to a directory, each a stream of its own. The directory
 // writer (which invalidates an old store there) starts with the first array, so an input that
 // fails in its header or vertices leaves an existing store untouched.
 class DirectoryOutputs final : public StoreOutputs {
  public:
-  DirectoryOutputs(std::string directory, uint32_t blocks_in_flight)
-      : directory_(std::move(directory)), in_flight_(blocks_in_flight) {}
+  DirectoryOutputs(std::string directory, uint64_t memory_limit)
+      : directory_(std::move(directory)), limit_(memory_limit), in_flight_(stream_blocks_in_flight(memory_limit)) {}
+  void plan(uint64_t vertices, uint64_t faces) override {
+    if (store_fits_half(vertices, faces, limit_) && !in_core_) in_core_.emplace(limit_);
+  }
   ArrayOutput& array(const char* name) override { return stream(name); }
   void read_back(const char* name, uint64_t offset, void* dst, size_t n) override {
     stream(name).read_back(offset, dst, n);
@@ -79,9 +90,11 @@ class DirectoryOutputs final : public StoreOutputs {
 
  private:
   std::string directory_;
+  uint64_t limit_;
   uint32_t in_flight_;
   std::optional<StoreDirectoryWriter> writer_;
   std::map<std::string, StoreArrayStream*> streams_;
+  std::optional<InCoreMemory> in_core_;  // a build that fits: fresh pages taken as in core
 };
 
 // The arrays of a store kept in anonymous files of a work folder, mapped once built: a
@@ -115,8 +128,8 @@ class AutoOutputs final : public StoreOutputs {
  public:
   AutoOutputs(uint64_t memory_limit, std::string folder) : limit_(memory_limit), folder_(std::move(folder)) {}
   void plan(uint64_t vertices, uint64_t faces) override {
-    const uint64_t bytes = 52 * faces + 33 * vertices;  // the store's size, 52 B/face + 33 B/vertex
-    if (limit_ > 0 && bytes > limit_ / 2) scratch_.emplace(folder_, stream_blocks_in_flight(limit_));
+    if (!store_fits_half(vertices, faces, limit_)) scratch_.emplace(folder_, stream_blocks_in_flight(limit_));
+    else if (!in_core_) in_core_.emplace(limit_);
   }
   ArrayOutput& array(const char* name) override { return out().array(name); }
   void expect(const char* name, uint64_t bytes) override { out().expect(name, bytes); }
@@ -130,6 +143,7 @@ class AutoOutputs final : public StoreOutputs {
   std::string folder_;
   MemoryOutputs ram_;
   std::optional<ScratchOutputs> scratch_;
+  std::optional<InCoreMemory> in_core_;  // a store built in RAM: fresh pages taken as in core
 };
 
 StoreHeader header_of(const StoreBuildResult& r, uint32_t attribute_count) {
@@ -390,7 +404,7 @@ MeshStore MeshStore::ingest(const std::string& input, const std::string& directo
   // The store's folder (scratch files go there by default) exists from here, and a failed or
   // interrupted build that made it leaves none behind.
   CreatedDirectory folder(directory);
-  DirectoryOutputs out(directory, stream_blocks_in_flight(o.memory_limit));
+  DirectoryOutputs out(directory, o.memory_limit);
   StoreBuilder builder(out, o, progress);
   stream_file(input, builder, read, progress);
   StoreBuildResult& r = builder.result();

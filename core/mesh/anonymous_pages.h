@@ -28,8 +28,8 @@ extern std::atomic<bool> populate_fresh_blocks;
 /// time up to 1.06 s) and 0.70-0.75 s without; the 105M-face ingest inside 2 GiB 18-24 s against
 /// 13 s; dragon x9 ingest 1.06-3.59 s against 1.10-1.25 s. Where the kernel
 /// hands out huge pages by itself (`enabled=always`) they still come, without the stalls.
-/// O(1); thread-safe; memory: the pages touched.
 /// Inside an InCoreMemory scope, blocks of 1 MiB or more are populated by the mmap call itself.
+/// O(1) (O(bytes) when populated); thread-safe; memory: the pages touched (all, when populated).
 inline void* map_anonymous_pages(std::size_t bytes) noexcept {
   const bool populate =
       bytes >= (std::size_t(1) << 20) && detail::populate_fresh_blocks.load(std::memory_order_relaxed);
@@ -53,8 +53,8 @@ void keep_freed_heap_memory(std::size_t bytes) noexcept;
 /// While one lives, the process takes memory as a job that fits in RAM should: blocks of
 /// map_anonymous_pages of 1 MiB or more come populated (one mmap call maps all their pages,
 /// which a job in core touches anyway: 5.6 us a page in this guest against 10.6 us for a fault
-/// each; dragon -> 20k 1.08 -> 0.89 s, dragon x9 ingest 3.4 -> 2.85 s, +2 and +20 MB of peak
-/// RSS), and malloc keeps freed memory for the next allocations (keep_freed_heap_memory): a
+/// each; alternated runs: dragon -> 20k 1.16 -> 0.86 s, dragon x9 -> 300k 4.62 -> 4.28 s, its
+/// ingest 3.15 -> 2.52 s, for +3, +6 and +25 MB of peak RSS), and malloc keeps freed memory for the next allocations (keep_freed_heap_memory): a
 /// sixteenth of the job's `memory_limit` (0 = none), at most 256 MiB.
 /// Out of core neither is wanted (pages not needed yet, kept memory taking the page cache's
 /// room): no scope. Nested scopes: the outermost one sets and resets. Process-wide.
